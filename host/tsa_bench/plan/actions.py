@@ -1,0 +1,103 @@
+"""Compiled plan segments: one primitive bench action each.
+
+Units: twist in motor turns (absolute, 0 = untwisted start of the run), rates in
+turns/s, accelerations in turns/s^2, durations/periods in s, voltages in V, masses in g.
+Every action is final: relative moves have already been resolved to absolute targets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, TypeAlias
+
+
+@dataclass(frozen=True)
+class Move:
+    """Move the motor to the absolute ``target_turns`` with a trapezoidal profile."""
+
+    target_turns: float
+    rate_turns_per_s: float
+    accel_turns_per_s2: float
+    kind: ClassVar[str] = "move"
+
+    def params(self) -> dict[str, Any]:
+        return {
+            "target_turns": self.target_turns,
+            "rate_turns_per_s": self.rate_turns_per_s,
+            "accel_turns_per_s2": self.accel_turns_per_s2,
+        }
+
+
+@dataclass(frozen=True)
+class Hold:
+    """Keep every output as it is for ``duration_s`` seconds (> 0) while sampling."""
+
+    duration_s: float
+    kind: ClassVar[str] = "hold"
+
+    def params(self) -> dict[str, Any]:
+        return {"duration_s": self.duration_s}
+
+
+@dataclass(frozen=True)
+class SetHeater:
+    """Set the Joule-heating voltage across the strings to ``voltage_V`` (>= 0)."""
+
+    voltage_V: float
+    kind: ClassVar[str] = "heater"
+
+    def params(self) -> dict[str, Any]:
+        return {"voltage_V": self.voltage_V}
+
+
+@dataclass(frozen=True)
+class SetSampling:
+    """Change the acquisition period to ``period_s`` seconds."""
+
+    period_s: float
+    kind: ClassVar[str] = "sampling"
+
+    def params(self) -> dict[str, Any]:
+        return {"period_s": self.period_s}
+
+
+@dataclass(frozen=True)
+class Prompt:
+    """Pause for the operator; ``load_g`` is the new hanging mass if the prompt changes it."""
+
+    text: str
+    load_g: float | None = None
+    kind: ClassVar[str] = "prompt"
+
+    def params(self) -> dict[str, Any]:
+        return {"text": self.text, "load_g": self.load_g}
+
+
+Action: TypeAlias = Move | Hold | SetHeater | SetSampling | Prompt
+
+#: All segment kinds, in a stable display order.
+KINDS: tuple[str, ...] = ("move", "hold", "heater", "sampling", "prompt")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One executable step of a compiled plan.
+
+    ``index`` counts from 0 in execution order; ``cycle`` is the 0-based iteration of
+    the innermost enclosing ``repeat`` (``None`` outside repeats); ``source`` is
+    ``"file.yaml:LINE"`` of the YAML step the segment came from.
+    """
+
+    index: int
+    action: Action
+    cycle: int | None
+    source: str
+
+    @property
+    def kind(self) -> str:
+        """``"move" | "hold" | "heater" | "sampling" | "prompt"``."""
+        return self.action.kind
+
+    def params(self) -> dict[str, Any]:
+        """JSON-serialisable action parameters with unit-suffixed keys."""
+        return self.action.params()
