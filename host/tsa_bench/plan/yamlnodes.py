@@ -212,5 +212,6 @@ class Reader:
             return None
         if node.tag == STR_TAG:
             return node.value
-        self.sink.add(node, field, f"unsupported value {describe(node)}", "string, number, boolean, null, list, mapping")
+        allowed = "string, number, boolean, null, list, mapping"
+        self.sink.add(node, field, f"unsupported value {describe(node)}", allowed)
         return None

@@ -11,7 +11,7 @@ from enum import IntEnum, IntFlag
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 1
-CATALOGUE_HASH = 0xE81D908E
+CATALOGUE_HASH = 0x3E6FFD3D
 MAX_PAYLOAD = 64
 
 

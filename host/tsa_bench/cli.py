@@ -1,0 +1,195 @@
+"""Command line: `tsa-bench run | validate | info | sim-serve`.
+
+Exit codes: 0 success; 1 the run failed or the device could not be reached;
+2 bad input (protocol, bench file, run file), nothing sent to any device;
+130 aborted by the user.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+import signal
+import sys
+import urllib.parse
+from pathlib import Path
+
+import click
+import serial
+
+from tsa_bench.bench import BenchConfig, BenchConfigError, load_bench
+from tsa_bench.plan import PlanErrors, format_summary, load_plan
+
+EXIT_FAILED, EXIT_BAD_INPUT, EXIT_ABORTED = 1, 2, 130
+
+
+def _load_bench_or_exit(path: str | None) -> BenchConfig:
+    try:
+        return load_bench(path)
+    except BenchConfigError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+
+
+def _load_plan_or_exit(path: str, bench: BenchConfig):
+    try:
+        return load_plan(path, bench.limits)
+    except PlanErrors as exc:
+        click.echo(f"error: {path} is not a valid protocol; nothing was sent to any device:", err=True)
+        click.echo(str(exc), err=True)
+        sys.exit(EXIT_BAD_INPUT)
+
+
+@click.group()
+@click.version_option(package_name="tsa-bench")
+def main() -> None:
+    """tsa-bench: bench acquisition for twisted string actuators."""
+
+
+@main.command()
+@click.argument("protocol", type=click.Path(dir_okay=False))
+@click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
+              help="Bench file (default: configs/bench/sim.yaml, the simulated bench).")
+def validate(protocol: str, bench_path: str | None) -> None:
+    """Check PROTOCOL against the schema and the bench limits; print the compiled plan."""
+    bench = _load_bench_or_exit(bench_path)
+    plan = _load_plan_or_exit(protocol, bench)
+    click.echo(format_summary(plan))
+    click.echo(f"valid for bench '{bench.name}'")
+
+
+def _sim_url(bench: BenchConfig, speed: float | None, seed: int | None) -> str:
+    query = {}
+    if bench.path:
+        query["bench"] = str(Path(bench.path).resolve())
+    if speed:
+        query["speed"] = repr(speed)
+    if seed is not None:
+        query["seed"] = str(seed)
+    return "sim://" + ("?" + urllib.parse.urlencode(query) if query else "")
+
+
+def _out_path(out_dir: str, plan_name: str) -> Path:
+    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", plan_name).strip("-") or "run"
+    path = Path(out_dir) / f"{stamp}_{safe}.h5"
+    n = 1
+    while path.exists():
+        n += 1
+        path = Path(out_dir) / f"{stamp}_{safe}-{n}.h5"
+    return path
+
+
+def _raise_interrupt(signum, frame):  # SIGTERM ends a run like Ctrl-C: STOP, file closed "aborted"
+    raise KeyboardInterrupt
+
+
+@main.command()
+@click.argument("protocol", type=click.Path(dir_okay=False))
+@click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
+              help="Bench file (default: configs/bench/sim.yaml, the simulated bench).")
+@click.option("--port", default=None, help="Serial device or pyserial URL; overrides the bench file's backend.")
+@click.option("--out", "out_dir", default="runs", show_default=True, help="Directory for the run file.")
+@click.option("--output", "out_file", type=click.Path(dir_okay=False), default=None,
+              help="Exact run-file path (overrides --out).")
+@click.option("--speed", type=float, default=None,
+              help="Simulated bench only: real-time factor (1 = wall-clock pace); default as fast as possible.")
+@click.option("--seed", type=int, default=None, help="Simulated bench only: noise seed.")
+def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
+        speed: float | None, seed: int | None) -> None:
+    """Run PROTOCOL on the bench and write one HDF5 run file."""
+    from tsa_bench import transport  # noqa: F401  (registers the sim:// URL handler)
+    from tsa_bench.console.progress import ProgressDisplay
+    from tsa_bench.console.summary import format_run_info
+    from tsa_bench.device import BenchClient, DeviceError
+    from tsa_bench.runner import AutoOperator, ConsoleOperator, PlanRejected, Runner, check_plan_against_device
+    from tsa_bench.store import RunWriter
+    from tsa_bench.store.inspect import inspect_run
+
+    bench = _load_bench_or_exit(bench_path)
+    plan = _load_plan_or_exit(protocol, bench)
+    if speed is not None and speed <= 0:
+        click.echo("error: --speed must be > 0 (a real-time factor)", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    if port is None and bench.backend == "sim":
+        url, backend = _sim_url(bench, speed, seed), "sim"
+        click.echo(f"tsa-bench: running '{plan.name}' on the SIMULATED bench ({bench.name}); no hardware is used")
+    else:
+        url = port or bench.port
+        if not url:
+            click.echo(f"error: {bench.path}: backend is serial but no port is given (use --port)", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        backend = "sim" if url.startswith("sim://") else "serial"
+        click.echo(f"tsa-bench: running '{plan.name}' on {url} at {bench.baud} baud ({bench.name})")
+    try:
+        ser = serial.serial_for_url(url, baudrate=bench.baud, timeout=0.05, write_timeout=2.0)
+    except (serial.SerialException, ValueError, OSError) as exc:
+        click.echo(f"error: cannot open {url}: {exc}\n  check the device is plugged in, the port name "
+                   "(`python -m serial.tools.list_ports`), and that no other program holds it", err=True)
+        sys.exit(EXIT_FAILED)
+    old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        client = BenchClient(ser, ack_timeout_s=bench.ack_timeout_s)
+        try:
+            ident = client.connect(bench.boot_timeout_s, baud=bench.baud)
+            check_plan_against_device(plan, ident)
+        except (DeviceError, PlanRejected) as exc:
+            click.echo(f"error: {exc}; nothing was run", err=True)
+            sys.exit(EXIT_BAD_INPUT if isinstance(exc, PlanRejected) else EXIT_FAILED)
+        except KeyboardInterrupt:
+            click.echo("aborted before the run started; nothing was run", err=True)
+            sys.exit(EXIT_ABORTED)
+        path = Path(out_file) if out_file else _out_path(out_dir, plan.name)
+        writer = RunWriter(path)
+        operator = AutoOperator() if ident.flags & 1 else ConsoleOperator()
+        runner = Runner(client, plan, bench, [writer, ProgressDisplay()], operator, backend=backend, port_name=url)
+        stop = runner.run()
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
+        ser.close()
+    click.echo(format_run_info(inspect_run(path)))
+    rtf = stop.t_end / stop.wall_time_s if stop.wall_time_s > 0 else float("inf")
+    click.echo(f"wall time    {stop.wall_time_s:.2f} s (real-time factor {rtf:.0f})")
+    click.echo(f"wrote {path}")
+    sys.exit({"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED))
+
+
+@main.command()
+@click.argument("run_file", type=click.Path(dir_okay=False))
+def info(run_file: str) -> None:
+    """Print RUN_FILE's metadata, exit status, segment summary and sample statistics."""
+    from tsa_bench.console.summary import format_run_info
+    from tsa_bench.store.inspect import RunFileError, inspect_run
+
+    try:
+        click.echo(format_run_info(inspect_run(run_file)))
+    except RunFileError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+
+
+@main.command("sim-serve")
+@click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
+              help="Bench file (default: configs/bench/sim.yaml).")
+@click.option("--speed", type=float, default=None, help="Real-time factor; default as fast as the client reads.")
+@click.option("--seed", type=int, default=None, help="Noise seed.")
+def sim_serve(bench_path: str | None, speed: float | None, seed: int | None) -> None:
+    """Serve the simulated bench on a pseudo-terminal; prints its path, runs until Ctrl-C."""
+    from tsa_bench.transport.pty_server import serve_pty
+
+    bench = _load_bench_or_exit(bench_path)
+
+    def ready(path: str) -> None:
+        click.echo(path)
+        click.echo(f"simulated bench '{bench.name}' serving on {path}; "
+                   f"run: tsa-bench run PROTOCOL --port {path}   (Ctrl-C stops)", err=True)
+        sys.stdout.flush()
+
+    try:
+        serve_pty(bench, speed, seed, ready)
+    except KeyboardInterrupt:
+        pass
+
+
+if __name__ == "__main__":
+    main()

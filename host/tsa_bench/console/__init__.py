@@ -1,0 +1,1 @@
+"""Terminal output: live progress during a run, summaries after it."""

@@ -1,0 +1,162 @@
+"""Bench client: the host end of the framed protocol over any pyserial-like port.
+
+Contract: ``connect()`` waits for the device's BOOT announcement (opening a real
+Mega's port resets it through DTR), discards stale input, and completes the
+HELLO/IDENTITY handshake, refusing a device with another protocol version or
+catalogue. ``command()`` sends one host command with a fresh sequence number and
+waits for its ACK, retransmitting the identical frame on timeout (the device
+recognises the repeated sequence number and does not execute it twice). Every other
+message that arrives meanwhile is kept, in order, for ``poll()``. The client never
+sleeps on wall time except while waiting for bytes from the port.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from typing import Any, NamedTuple
+
+import serial
+
+from tsa_bench.device.errors import (
+    CommandRefused, ConnectionLost, DeviceMismatch, DeviceNotFound, NoAcknowledgement,
+)
+from tsa_bench.protocol import MessageDecoder, encode, msg, spec_of
+
+READ_CHUNK = 4096
+
+
+class BenchClient:
+    """Framed-protocol session on an open port (``serial.Serial`` or ``sim://``)."""
+
+    def __init__(self, port: Any, *, ack_timeout_s: float = 0.25, retries: int = 4) -> None:
+        self.port = port
+        self.ack_timeout_s = ack_timeout_s
+        self.retries = retries
+        self.identity: msg.Identity | None = None
+        self.boot: msg.Boot | None = None
+        self.retransmissions = 0
+        self.last_tx_wall = time.monotonic()
+        self._seq = 0
+        self._decoder = MessageDecoder()
+        self._inbox: deque[NamedTuple] = deque()
+
+    # -- bytes ------------------------------------------------------------
+    @property
+    def frame_errors(self) -> dict[str, int]:
+        """Rejected incoming frames by reason (crc, cobs, short, ...)."""
+        return self._decoder.errors
+
+    def _read(self) -> list[NamedTuple]:
+        try:
+            waiting = self.port.in_waiting
+            # read(1) blocks up to the port timeout when nothing is waiting
+            data = self.port.read(min(max(1, waiting), READ_CHUNK))
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
+        return [f.message for f in self._decoder.feed(data)] if data else []
+
+    def _write(self, frame: bytes) -> None:
+        try:
+            self.port.write(frame)
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
+        self.last_tx_wall = time.monotonic()
+
+    def _port_name(self) -> str:
+        return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
+
+    # -- session ----------------------------------------------------------
+    def connect(self, boot_timeout_s: float = 3.0, baud: int | None = None) -> msg.Identity:
+        """Wait for BOOT (up to ``boot_timeout_s``), then handshake; return IDENTITY."""
+        deadline = time.monotonic() + boot_timeout_s
+        while self.boot is None and time.monotonic() < deadline:
+            for m in self._read():
+                if isinstance(m, msg.Boot):
+                    self.boot = m
+        # Whatever arrived before or with the boot announcement is stale.
+        self._inbox.clear()
+        try:
+            self.port.reset_input_buffer()
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
+        for _attempt in range(3):
+            self._write(encode(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH), self._next_seq()))
+            reply = self._await(lambda m: isinstance(m, (msg.Identity, msg.Ack)), self.ack_timeout_s * 4)
+            if isinstance(reply, msg.Identity):
+                self._check_identity(reply)
+                self.identity = reply
+                return reply
+            if isinstance(reply, msg.Ack) and reply.acked_id == 0x01:
+                raise DeviceMismatch(
+                    f"the device on {self._port_name()} refused our HELLO "
+                    f"(status {msg.Status(reply.status).name}): it speaks another protocol version or "
+                    "catalogue; flash the firmware built from this checkout (make -C firmware flash)")
+        raise DeviceNotFound(
+            f"no answer from a tsa-bench device on {self._port_name()} at {baud or getattr(self.port, 'baudrate', '?')} "
+            "baud. Check: the port (is it the Arduino Mega? `python -m serial.tools.list_ports`), the baud rate "
+            "(the firmware uses 250000), and that the tsa-bench firmware is flashed (make -C firmware flash)"
+            + ("" if self.boot else "; no boot announcement was seen either"))
+
+    @staticmethod
+    def _check_identity(ident: msg.Identity) -> None:
+        if ident.protocol_version != msg.PROTOCOL_VERSION or ident.catalogue_hash != msg.CATALOGUE_HASH:
+            raise DeviceMismatch(
+                f"device speaks protocol v{ident.protocol_version} catalogue 0x{ident.catalogue_hash:08X}, "
+                f"host speaks v{msg.PROTOCOL_VERSION} catalogue 0x{msg.CATALOGUE_HASH:08X} "
+                f"(firmware {ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}); rebuild and flash the firmware "
+                "from this checkout (make -C firmware flash) or install the matching tsa-bench")
+
+    def _next_seq(self) -> int:
+        self._seq = (self._seq + 1) & 0xFFFF
+        return self._seq
+
+    def _await(self, predicate, timeout_s: float) -> NamedTuple | None:
+        """Read until a message matching ``predicate`` arrives; keep the others."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            for m in self._read():
+                if predicate(m):
+                    return m
+                self._inbox.append(m)
+            if time.monotonic() >= deadline:
+                return None
+
+    # -- commands ---------------------------------------------------------
+    def command(self, message: NamedTuple, *, check: bool = True) -> msg.Ack:
+        """Send one command and wait for its ACK (retransmitting on timeout).
+
+        With ``check`` a NAK raises :class:`CommandRefused`; otherwise it is returned.
+        """
+        spec = spec_of(message)
+        seq = self._next_seq()
+        frame = encode(message, seq)
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retransmissions += 1
+            self._write(frame)
+            ack = self._await(lambda m: isinstance(m, msg.Ack) and m.acked_seq == seq, self.ack_timeout_s)
+            if ack is not None:
+                if check and ack.status != msg.Status.OK:
+                    raise CommandRefused(spec.name, ack.status,
+                                         f"device refused {spec.name} {tuple(message)}: "
+                                         f"{msg.Status(ack.status).name.lower()}")
+                return ack
+        raise NoAcknowledgement(
+            f"no ACK for {spec.name} after {self.retries + 1} transmissions of "
+            f"{self.ack_timeout_s:.2f} s on {self._port_name()}")
+
+    def poll(self) -> list[NamedTuple]:
+        """Everything received since the last poll (reads the port once if nothing is kept)."""
+        if not self._inbox:
+            self._inbox.extend(self._read())
+        out = list(self._inbox)
+        self._inbox.clear()
+        return out
+
+    def stop(self) -> None:
+        """Immediate STOP; best effort (retransmitted, but never raises on silence)."""
+        try:
+            self.command(msg.Stop(), check=False)
+        except (NoAcknowledgement, ConnectionLost):
+            pass

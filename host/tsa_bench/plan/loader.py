@@ -1,0 +1,191 @@
+"""Load, validate and compile a YAML protocol into a :class:`~tsa_bench.plan.model.Plan`.
+
+Top-level keys: ``name`` (required), ``description``, ``metadata`` (free-form mapping),
+``load_g`` (initial hanging mass, >= 0), ``sampling_period_s`` (0.001 .. 60 s, default
+0.1), ``limits`` (any subset of :class:`Limits` fields; may only tighten the bench),
+``defaults`` (``rate_turns_per_s``, ``accel_turns_per_s2`` for moves lacking them) and
+``steps`` (required, non-empty; see :mod:`tsa_bench.plan.steps`).
+
+Contract: every problem found is raised together as one :class:`PlanErrors`; positions
+come from the YAML node marks.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+from yaml import MappingNode, Node
+
+from tsa_bench.plan.compiler import compile_ops, outer_cycles
+from tsa_bench.plan.errors import ErrorSink, PlanError, PlanErrors
+from tsa_bench.plan.limits import Limits, loosening_problem
+from tsa_bench.plan.model import Plan
+from tsa_bench.plan.steps import MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser
+from tsa_bench.plan.yamlnodes import NULL_TAG, Reader
+
+DEFAULT_SAMPLING_PERIOD_S = 0.1
+TOP_LEVEL_KEYS: tuple[str, ...] = (
+    "name", "description", "metadata", "load_g", "sampling_period_s", "limits", "defaults", "steps",
+)
+_REQUIRED_KEYS = ("name", "steps")
+_UNIT = {
+    "max_twist_turns": "turns",
+    "min_twist_turns": "turns",
+    "max_heater_voltage_V": "V",
+    "max_rate_turns_per_s": "turns/s",
+    "max_accel_turns_per_s2": "turns/s^2",
+}
+
+
+def load_plan(path: str | Path, limits: Limits) -> Plan:
+    """Read and compile the protocol at ``path`` under the bench ``limits``.
+
+    Raises :class:`PlanErrors` for a missing/unreadable file or any protocol problem.
+    """
+    name = str(path)
+    try:
+        raw = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise PlanErrors([PlanError(name, None, None, "", f"protocol file not found: {name}")]) from None
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise PlanErrors([PlanError(name, None, None, "", f"cannot read protocol file {name}: {reason}")]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        message = f"not UTF-8 text (bad byte at offset {exc.start})"
+        raise PlanErrors([PlanError(name, None, None, "", message)]) from None
+    return _load(text, limits, name, name)
+
+
+def load_plan_text(text: str, limits: Limits, filename: str = "<string>") -> Plan:
+    """Compile protocol YAML given as text; ``filename`` is used in messages and segment sources."""
+    return _load(text, limits, filename, None)
+
+
+def _compose(text: str, sink: ErrorSink) -> Node | None:
+    try:
+        return yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        detail = "; ".join(p for p in (exc.context, exc.problem) if p)
+        sink.add(mark, "", f"YAML syntax error: {detail}")
+    except yaml.YAMLError as exc:  # e.g. ReaderError for control characters
+        sink.add(None, "", f"YAML error: {exc}")
+    return None
+
+
+def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
+    sink = ErrorSink(filename)
+    reader = Reader(sink)
+    root = _compose(text, sink)
+    sink.raise_if_any()
+    allowed_top = ", ".join(TOP_LEVEL_KEYS)
+    if root is None:
+        sink.add(yaml.error.Mark(filename, 0, 0, 0, None, None), "", "protocol is empty", allowed_top)
+        sink.raise_if_any()
+    if not isinstance(root, MappingNode):
+        sink.add(root, "", "top level must be a mapping of protocol keys", allowed_top)
+        sink.raise_if_any()
+    top = reader.mapping(root, "", TOP_LEVEL_KEYS, _REQUIRED_KEYS) or {}
+
+    name = reader.string(top["name"], "name") if "name" in top else None
+    description = reader.string(top["description"], "description") if "description" in top else ""
+    metadata = _metadata(reader, top.get("metadata"))
+    load_g = None
+    if "load_g" in top and top["load_g"].tag != NULL_TAG:
+        load_g = reader.number(top["load_g"], "load_g", "g", ge=0)
+    period_s: float | None = DEFAULT_SAMPLING_PERIOD_S
+    if "sampling_period_s" in top:
+        period_s = reader.number(top["sampling_period_s"], "sampling_period_s", "s",
+                                 ge=MIN_SAMPLING_PERIOD_S, le=MAX_SAMPLING_PERIOD_S)
+    limits = _protocol_limits(reader, top.get("limits"), bench)
+    defaults = _defaults(reader, top.get("defaults"), limits)
+
+    segments = ()
+    cycles = 0
+    if "steps" in top:
+        ops = StepParser(reader, limits, defaults, filename).parse_steps(top["steps"], "steps")
+        segments = compile_ops(ops, limits, sink, top["steps"])
+        cycles = outer_cycles(ops)
+    sink.raise_if_any()
+    assert name is not None and description is not None and period_s is not None
+    return Plan(
+        name=name,
+        description=description,
+        path=path,
+        source_text=text,
+        segments=segments,
+        sampling_period_s=period_s,
+        load_g=load_g,
+        limits=limits,
+        metadata=metadata,
+        cycles=cycles,
+    )
+
+
+def _metadata(reader: Reader, node: Node | None) -> dict[str, Any]:
+    if node is None or node.tag == NULL_TAG:
+        return {}
+    if not isinstance(node, MappingNode):
+        reader.sink.add(node, "metadata", "expected a mapping of free-form notes", "a mapping")
+        return {}
+    data = reader.plain_data(node, "metadata")
+    return data if isinstance(data, dict) else {}
+
+
+def _protocol_limits(reader: Reader, node: Node | None, bench: Limits) -> Limits:
+    """Bench limits tightened by the protocol ``limits:``; the bench limits if that is invalid."""
+    if node is None:
+        return bench
+    fields = reader.mapping(node, "limits", Limits.field_names())
+    if fields is None:
+        return bench
+    before = len(reader.sink)
+    proposed: dict[str, float] = {}
+    for key, value_node in fields.items():
+        field = f"limits.{key}"
+        positive = key in ("max_rate_turns_per_s", "max_accel_turns_per_s2")
+        value = reader.number(value_node, field, _UNIT[key], gt=0 if positive else None,
+                              ge=0 if key == "max_heater_voltage_V" else None)
+        if value is None:
+            continue
+        problem = loosening_problem(key, getattr(bench, key), value)
+        if problem:
+            bound = getattr(bench, key)
+            side = ">=" if key == "min_twist_turns" else "<="
+            reader.sink.add(value_node, field,
+                            f"protocol limits may only tighten the bench limits: {problem}",
+                            f"{side} {bound:g} {_UNIT[key]}")
+            continue
+        proposed[key] = value
+    if len(reader.sink) > before:
+        return bench
+    try:
+        return bench.tightened(proposed)
+    except ValueError as exc:   # e.g. min_twist_turns above max_twist_turns
+        reader.sink.add(node, "limits", str(exc))
+        return bench
+
+
+def _defaults(reader: Reader, node: Node | None, limits: Limits) -> MotionDefaults:
+    if node is None:
+        return MotionDefaults()
+    fields = reader.mapping(node, "defaults", ("rate_turns_per_s", "accel_turns_per_s2"))
+    if fields is None:
+        return MotionDefaults(rate_invalid=True, accel_invalid=True)
+    rate = accel = None
+    if "rate_turns_per_s" in fields:
+        rate = reader.number(fields["rate_turns_per_s"], "defaults.rate_turns_per_s", "turns/s", gt=0,
+                             le=limits.max_rate_turns_per_s, le_name="max_rate_turns_per_s")
+    if "accel_turns_per_s2" in fields:
+        accel = reader.number(fields["accel_turns_per_s2"], "defaults.accel_turns_per_s2", "turns/s^2", gt=0,
+                              le=limits.max_accel_turns_per_s2, le_name="max_accel_turns_per_s2")
+    return MotionDefaults(
+        rate_turns_per_s=rate,
+        accel_turns_per_s2=accel,
+        rate_invalid="rate_turns_per_s" in fields and rate is None,
+        accel_invalid="accel_turns_per_s2" in fields and accel is None,
+    )

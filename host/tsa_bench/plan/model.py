@@ -1,0 +1,101 @@
+"""The compiled plan and its summary figures.
+
+Units: turns, V, s, g as in :mod:`tsa_bench.plan.actions`. Summary conventions: the run
+starts at 0 turns with the heater at 0 V, so both ranges include 0; move durations are
+trapezoidal-profile estimates; prompts wait for the operator and count 0 s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from tsa_bench.motion import TrapezoidProfile
+from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling
+from tsa_bench.plan.limits import Limits
+
+
+@dataclass(frozen=True)
+class PlanSummary:
+    """Headline figures of a compiled plan (see module docstring for conventions)."""
+
+    segment_count: int
+    counts_by_kind: dict[str, int]            # every kind in KINDS, possibly 0
+    duration_s: float                         # move_duration_s + hold_duration_s
+    move_duration_s: float
+    hold_duration_s: float
+    twist_range_turns: tuple[float, float]    # (min, max), including the 0-turn start
+    voltage_range_V: tuple[float, float]      # (min, max), including the initial 0 V
+    sampling_period_range_s: tuple[float, float]
+    cycles: int                               # iterations of the outermost repeat block(s)
+    prompt_count: int
+    loads_g: tuple[float, ...]                # hanging masses in order (initial, then prompt changes)
+    final_twist_turns: float
+    final_voltage_V: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A validated protocol compiled to segments; built only by the loader.
+
+    ``source_text`` is the YAML exactly as read; ``limits`` are the effective limits
+    (bench tightened by the protocol); ``cycles`` counts the iterations of the outermost
+    repeat block(s).
+    """
+
+    name: str
+    description: str
+    path: str | None
+    source_text: str
+    segments: tuple[Segment, ...]
+    sampling_period_s: float
+    load_g: float | None
+    limits: Limits
+    metadata: dict[str, Any] = field(default_factory=dict)
+    cycles: int = 0
+
+    def summary(self) -> PlanSummary:
+        """Compute the :class:`PlanSummary` (linear in the number of segments)."""
+        counts = dict.fromkeys(KINDS, 0)
+        position = 0.0
+        twist_lo = twist_hi = 0.0
+        voltage = volt_lo = volt_hi = 0.0
+        period_lo = period_hi = self.sampling_period_s
+        move_s = hold_s = 0.0
+        loads: list[float] = [] if self.load_g is None else [self.load_g]
+        durations: dict[tuple[float, float, float], float] = {}
+        for seg in self.segments:
+            action = seg.action
+            counts[action.kind] += 1
+            if isinstance(action, Move):
+                key = (action.target_turns - position, action.rate_turns_per_s, action.accel_turns_per_s2)
+                if key not in durations:
+                    durations[key] = TrapezoidProfile(*key).duration
+                move_s += durations[key]
+                position = action.target_turns
+                twist_lo, twist_hi = min(twist_lo, position), max(twist_hi, position)
+            elif isinstance(action, Hold):
+                hold_s += action.duration_s
+            elif isinstance(action, SetHeater):
+                voltage = action.voltage_V
+                volt_lo, volt_hi = min(volt_lo, voltage), max(volt_hi, voltage)
+            elif isinstance(action, SetSampling):
+                period_lo, period_hi = min(period_lo, action.period_s), max(period_hi, action.period_s)
+            elif isinstance(action, Prompt) and action.load_g is not None:
+                if not loads or loads[-1] != action.load_g:
+                    loads.append(action.load_g)
+        return PlanSummary(
+            segment_count=len(self.segments),
+            counts_by_kind=counts,
+            duration_s=move_s + hold_s,
+            move_duration_s=move_s,
+            hold_duration_s=hold_s,
+            twist_range_turns=(twist_lo, twist_hi),
+            voltage_range_V=(volt_lo, volt_hi),
+            sampling_period_range_s=(period_lo, period_hi),
+            cycles=self.cycles,
+            prompt_count=counts["prompt"],
+            loads_g=tuple(loads),
+            final_twist_turns=position,
+            final_voltage_V=voltage,
+        )

@@ -1,0 +1,285 @@
+"""Parse the ``steps:`` list of a protocol into an operation tree.
+
+Step kinds (each step is a one-key mapping ``{kind: {...}}``):
+
+==================  =====================================================================
+move_to             ``turns`` (absolute target), optional ``rate_turns_per_s``, ``accel_turns_per_s2``
+move_by             ``turns`` (relative to the previous target), optional rate/accel
+hold                ``duration_s`` (> 0)
+heater              ``voltage_V`` (0 .. max_heater_voltage_V)
+sampling            ``period_s`` (0.001 .. 60 s)
+prompt              ``text``, optional ``load_g`` (new hanging mass, >= 0, or null)
+rotation_sequence   ``targets_turns`` (absolute), ``hold_s`` (>= 0, after each), optional rate/accel
+voltage_steps       ``voltages_V``, ``hold_s`` (>= 0, after each voltage)
+repeat              ``count`` (integer >= 1), ``steps`` (nestable)
+==================  =====================================================================
+
+Moves lacking rate/accel take them from the protocol ``defaults:``. Static checks
+(types, signs, rate/accel/voltage limits) happen here; twist targets are checked when
+the tree is compiled, because relative moves only resolve then.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import PurePath
+from typing import TypeAlias
+
+from yaml import MappingNode, Node, ScalarNode
+
+from tsa_bench.plan.actions import Action, Hold, Prompt, SetHeater, SetSampling
+from tsa_bench.plan.limits import Limits
+from tsa_bench.plan.yamlnodes import NULL_TAG, STR_TAG, Reader, describe
+
+MIN_SAMPLING_PERIOD_S = 0.001
+MAX_SAMPLING_PERIOD_S = 60.0
+MAX_REPEAT_DEPTH = 8
+
+STEP_KINDS: tuple[str, ...] = (
+    "move_to", "move_by", "hold", "heater", "sampling", "prompt",
+    "rotation_sequence", "voltage_steps", "repeat",
+)
+_MOTION_KEYS = ("rate_turns_per_s", "accel_turns_per_s2")
+_MOVING_KINDS = frozenset({"move_to", "move_by", "rotation_sequence", "repeat"})
+# Stand-in rate/accel for a move whose own rate/accel was invalid: its target is still
+# range-checked, and a protocol with errors never becomes a Plan, so it is never used.
+_PLACEHOLDER_MOTION = (1.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class MoveOp:
+    """A move whose absolute target is known (``relative=False``) or resolved at compile time."""
+
+    turns: float
+    relative: bool
+    rate_turns_per_s: float
+    accel_turns_per_s2: float
+    source: str
+    node: Node      # where twist-limit errors point
+    field: str
+
+
+@dataclass(frozen=True, eq=False)
+class ActionOp:
+    """A final action (hold, heater, sampling, prompt) copied as-is into the plan."""
+
+    action: Action
+    source: str
+
+
+@dataclass(frozen=True, eq=False)
+class RepeatOp:
+    """``body`` run ``count`` times; ``count`` is ``None`` when it was invalid (checked once)."""
+
+    count: int | None
+    body: tuple[Op, ...]
+    source: str     # "file.yaml:LINE" of the repeat step
+
+
+@dataclass(frozen=True, eq=False)
+class LostTwistOp:
+    """Stands for an invalid motion step: the twist after it is unknown, so later
+    relative moves are not range-checked (avoids follow-on errors)."""
+
+
+Op: TypeAlias = MoveOp | ActionOp | RepeatOp | LostTwistOp
+
+
+@dataclass(frozen=True)
+class MotionDefaults:
+    """Protocol ``defaults:``; ``*_invalid`` = the key was given but already reported as bad."""
+
+    rate_turns_per_s: float | None = None
+    accel_turns_per_s2: float | None = None
+    rate_invalid: bool = False
+    accel_invalid: bool = False
+
+
+class StepParser:
+    """Turns step nodes into :data:`Op` s, reporting problems through ``reader``."""
+
+    def __init__(self, reader: Reader, limits: Limits, defaults: MotionDefaults, filename: str) -> None:
+        self.reader = reader
+        self.limits = limits
+        self.defaults = defaults
+        self.basename = PurePath(filename).name if not filename.startswith("<") else filename
+        self._handlers: dict[str, Callable[[Node, str, str, int], list[Op] | None]] = {
+            "move_to": self._move_to,
+            "move_by": self._move_by,
+            "hold": self._hold,
+            "heater": self._heater,
+            "sampling": self._sampling,
+            "prompt": self._prompt,
+            "rotation_sequence": self._rotation_sequence,
+            "voltage_steps": self._voltage_steps,
+            "repeat": self._repeat,
+        }
+
+    # ---------------------------------------------------------------- structure
+    def parse_steps(self, node: Node, field: str, depth: int = 0) -> list[Op]:
+        """Parse a non-empty list of steps (``depth`` = number of enclosing repeats)."""
+        items = self.reader.sequence(node, field, what="steps")
+        ops: list[Op] = []
+        for i, item in enumerate(items or ()):
+            ops.extend(self._step(item, f"{field}[{i}]", depth))
+        return ops
+
+    def _step(self, node: Node, field: str, depth: int) -> list[Op]:
+        kinds = ", ".join(STEP_KINDS)
+        if not isinstance(node, MappingNode):
+            self.reader.sink.add(
+                node, field,
+                f"each step must be a one-key mapping like 'hold: {{duration_s: 1}}', got {describe(node)}", kinds)
+            return [LostTwistOp()]
+        if len(node.value) != 1:
+            names = ", ".join(repr(k.value) for k, _ in node.value if isinstance(k, ScalarNode))
+            self.reader.sink.add(
+                node, field,
+                f"each step must be a one-key mapping (the step kind), got {len(node.value)} keys ({names}); "
+                "split it into separate list items", kinds)
+            return [LostTwistOp()]
+        key_node, value_node = node.value[0]
+        kind = key_node.value if isinstance(key_node, ScalarNode) and key_node.tag == STR_TAG else None
+        if kind is None or kind not in self._handlers:
+            shown = repr(kind) if kind is not None else describe(key_node)
+            self.reader.sink.add(key_node, field, f"unknown step kind {shown}", kinds)
+            return [LostTwistOp()]
+        source = f"{self.basename}:{node.start_mark.line + 1}"
+        ops = self._handlers[kind](value_node, f"{field}.{kind}", source, depth)
+        if ops is None:
+            return [LostTwistOp()] if kind in _MOVING_KINDS else []
+        return ops
+
+    # ---------------------------------------------------------------- helpers
+    def _motion(self, fields: dict[str, Node], node: Node, field: str) -> tuple[float, float] | None:
+        """Rate and accel of a move: its own keys, else the protocol defaults."""
+        lim = self.limits
+        rate = self._motion_value(
+            fields, node, field, "rate_turns_per_s", "turns/s", lim.max_rate_turns_per_s,
+            "max_rate_turns_per_s", self.defaults.rate_turns_per_s, self.defaults.rate_invalid)
+        accel = self._motion_value(
+            fields, node, field, "accel_turns_per_s2", "turns/s^2", lim.max_accel_turns_per_s2,
+            "max_accel_turns_per_s2", self.defaults.accel_turns_per_s2, self.defaults.accel_invalid)
+        return None if rate is None or accel is None else (rate, accel)
+
+    def _motion_value(
+        self, fields: dict[str, Node], node: Node, field: str, key: str, unit: str,
+        limit: float | None, limit_name: str, default: float | None, default_invalid: bool,
+    ) -> float | None:
+        if key in fields:
+            return self.reader.number(fields[key], f"{field}.{key}", unit, gt=0, le=limit, le_name=limit_name)
+        if default is None and not default_invalid:
+            self.reader.sink.add(node, f"{field}.{key}", f"missing {key} and no defaults.{key} is set",
+                                 f"give {key} here or under defaults:")
+        return default
+
+    def _hold_after(self, fields: dict[str, Node], field: str) -> float | None:
+        return self.reader.number(fields["hold_s"], f"{field}.hold_s", "s", ge=0) if "hold_s" in fields else None
+
+    def _voltage(self, node: Node, field: str) -> float | None:
+        return self.reader.number(node, field, "V", ge=0, le=self.limits.max_heater_voltage_V,
+                                  le_name="max_heater_voltage_V")
+
+    # ---------------------------------------------------------------- step kinds
+    def _move(self, node: Node, field: str, source: str, relative: bool) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("turns", *_MOTION_KEYS), required=("turns",))
+        if fields is None:
+            return None
+        turns = self.reader.number(fields["turns"], f"{field}.turns", "turns") if "turns" in fields else None
+        rate, accel = self._motion(fields, node, field) or _PLACEHOLDER_MOTION
+        if turns is None:
+            return None
+        return [MoveOp(turns, relative, rate, accel, source, fields["turns"], f"{field}.turns")]
+
+    def _move_to(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        return self._move(node, field, source, relative=False)
+
+    def _move_by(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        return self._move(node, field, source, relative=True)
+
+    def _hold(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("duration_s",), required=("duration_s",))
+        if not fields or "duration_s" not in fields:
+            return None
+        duration = self.reader.number(fields["duration_s"], f"{field}.duration_s", "s", gt=0)
+        return None if duration is None else [ActionOp(Hold(duration), source)]
+
+    def _heater(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("voltage_V",), required=("voltage_V",))
+        if not fields or "voltage_V" not in fields:
+            return None
+        voltage = self._voltage(fields["voltage_V"], f"{field}.voltage_V")
+        return None if voltage is None else [ActionOp(SetHeater(voltage), source)]
+
+    def _sampling(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("period_s",), required=("period_s",))
+        if not fields or "period_s" not in fields:
+            return None
+        period = self.reader.number(fields["period_s"], f"{field}.period_s", "s",
+                                    ge=MIN_SAMPLING_PERIOD_S, le=MAX_SAMPLING_PERIOD_S)
+        return None if period is None else [ActionOp(SetSampling(period), source)]
+
+    def _prompt(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("text", "load_g"), required=("text",))
+        if not fields or "text" not in fields:
+            return None
+        text = self.reader.string(fields["text"], f"{field}.text")
+        load_node = fields.get("load_g")
+        load: float | None = None
+        if load_node is not None and load_node.tag != NULL_TAG:
+            load = self.reader.number(load_node, f"{field}.load_g", "g", ge=0)
+            if load is None:
+                return None
+        return None if text is None else [ActionOp(Prompt(text, load), source)]
+
+    def _rotation_sequence(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("targets_turns", "hold_s", *_MOTION_KEYS),
+                                     required=("targets_turns", "hold_s"))
+        if fields is None:
+            return None
+        hold = self._hold_after(fields, field)
+        rate, accel = self._motion(fields, node, field) or _PLACEHOLDER_MOTION
+        items = self.reader.sequence(fields["targets_turns"], f"{field}.targets_turns", "targets") \
+            if "targets_turns" in fields else None
+        if items is None:
+            return None
+        ops: list[Op] = []
+        for j, item in enumerate(items):
+            item_field = f"{field}.targets_turns[{j}]"
+            turns = self.reader.number(item, item_field, "turns")
+            if turns is None:
+                ops.append(LostTwistOp())
+                continue
+            ops.append(MoveOp(turns, False, rate, accel, source, item, item_field))
+            if hold:
+                ops.append(ActionOp(Hold(hold), source))
+        return ops
+
+    def _voltage_steps(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("voltages_V", "hold_s"), required=("voltages_V", "hold_s"))
+        if fields is None:
+            return None
+        hold = self._hold_after(fields, field)
+        items = self.reader.sequence(fields["voltages_V"], f"{field}.voltages_V", "voltages") \
+            if "voltages_V" in fields else None
+        ops: list[Op] = []
+        for j, item in enumerate(items or ()):
+            voltage = self._voltage(item, f"{field}.voltages_V[{j}]")
+            if voltage is not None:
+                ops.append(ActionOp(SetHeater(voltage), source))
+                if hold:
+                    ops.append(ActionOp(Hold(hold), source))
+        return ops if items is not None and hold is not None else None
+
+    def _repeat(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("count", "steps"), required=("count", "steps"))
+        if fields is None:
+            return None
+        if depth >= MAX_REPEAT_DEPTH:
+            self.reader.sink.add(node, field, f"repeats nested more than {MAX_REPEAT_DEPTH} deep",
+                                 f"at most {MAX_REPEAT_DEPTH} nested repeats")
+            return None
+        count = self.reader.integer(fields["count"], f"{field}.count", ge=1) if "count" in fields else None
+        body = self.parse_steps(fields["steps"], f"{field}.steps", depth + 1) if "steps" in fields else []
+        return [RepeatOp(count, tuple(body), source)]

@@ -1,0 +1,364 @@
+"""The run engine: executes a compiled Plan on a connected bench and emits documents.
+
+Contract: :meth:`Runner.run` keeps the device's command queue fed from the plan, one
+device command per plan segment (operator prompts are handled on the host once the
+device is idle), converts samples to physical units with the bench calibration, and
+emits :mod:`tsa_bench.runner.documents` to every consumer. It never sleeps on wall
+time for device-timed work: holds and moves are timed by the device, and the runner
+only waits for bytes. It always ends with ``on_stop``: "success" when every segment
+is done, "aborted" on Ctrl-C (after an immediate STOP, which also turns the heater
+off), "failed" on a device fault, a refused command or a lost connection, keeping
+everything received so far.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from tsa_bench.bench import BenchConfig
+from tsa_bench.device import BenchClient, CommandRefused, DeviceError
+from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling
+from tsa_bench.protocol import msg
+from tsa_bench.runner.documents import (
+    SAMPLE_COLUMNS, EventRecord, RunConsumer, RunStart, RunStop, SampleBlock, SegmentRecord,
+)
+from tsa_bench.runner.operator import Operator
+
+NO_SEGMENT = 0xFFFF           # wire value for commands outside the plan (setup, teardown)
+WIRE_SEGMENTS = 0xFFFF        # plan indices travel modulo this; the host unwraps them
+G_N_PER_G = 9.80665e-3        # weight of one gram, N
+BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
+BLOCK_WALL_S = 0.5            # or this much wall time has passed, or a segment ends
+
+
+class RunFailed(Exception):
+    """Ends a run as failed with the given reason."""
+
+
+class PlanRejected(ValueError):
+    """The plan does not fit the connected device's limits (nothing was sent)."""
+
+
+def check_plan_against_device(plan: Plan, ident: msg.Identity) -> None:
+    """Refuse a plan the device would refuse, before anything moves."""
+    spt = ident.steps_per_turn
+    problems = []
+    lo, hi = plan.summary().twist_range_turns
+    if round(hi * spt) > ident.max_twist_steps or round(lo * spt) < ident.min_twist_steps:
+        problems.append(f"twist range {lo:g}..{hi:g} turns exceeds the device's "
+                        f"{ident.min_twist_steps / spt:g}..{ident.max_twist_steps / spt:g} turns")
+    vmax = plan.summary().voltage_range_V[1]
+    if round(vmax * 1000) > ident.max_heater_mV:
+        problems.append(f"heater {vmax:g} V exceeds the device's {ident.max_heater_mV / 1000:g} V")
+    for seg in plan.segments:
+        a = seg.action
+        if isinstance(a, Move) and (round(a.rate_turns_per_s * spt) > ident.max_rate_steps_per_s
+                                    or round(a.accel_turns_per_s2 * spt) > ident.max_accel_steps_per_s2):
+            problems.append(f"{seg.source}: rate/acceleration beyond the device's maximum")
+            break
+    if problems:
+        raise PlanRejected("; ".join(problems))
+
+
+class Runner:
+    """Runs one plan on a connected :class:`BenchClient`; see the module contract."""
+
+    def __init__(self, client: BenchClient, plan: Plan, bench: BenchConfig, consumers: Sequence[RunConsumer],
+                 operator: Operator, *, backend: str, port_name: str) -> None:
+        if client.identity is None:
+            raise ValueError("connect the client before running")
+        self.client, self.plan, self.bench = client, plan, bench
+        self.consumers = list(consumers)
+        self.operator = operator
+        self.backend, self.port_name = backend, port_name
+        self.ident: msg.Identity = client.identity
+        self.spt = self.ident.steps_per_turn
+        self.simulated = bool(self.ident.flags & msg.DeviceFlags.SIMULATED)
+        n = len(plan.segments)
+        self._t_start = np.full(n, np.nan)
+        self._done = np.zeros(n, bool)
+        self._next = 0                  # next plan segment to send
+        self._oldest = 0                # oldest segment not yet done
+        self._free = self.ident.queue_slots
+        self._t0_us: int | None = None
+        self._now_us = 0
+        self._last_tx_dev_us = 0
+        self._last_rx_wall = time.monotonic()
+        self._load_g = float(plan.load_g or 0.0)
+        self._prompt_segment: int | None = None
+        self._rows: list[tuple] = []
+        self._last_block_wall = time.monotonic()
+        self._last_counter: int | None = None
+        self.samples = 0
+        self.samples_lost = 0
+        self._segments_done = 0
+        self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 4000.0)
+        self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
+
+    # -- emit ------------------------------------------------------------------
+    def _emit(self, name: str, doc) -> None:
+        for c in self.consumers:
+            getattr(c, name)(doc)
+
+    def _t(self, t_us: int) -> float:
+        return (t_us - (self._t0_us or 0)) / 1e6
+
+    def _event(self, kind: str, detail: str, t_us: int | None = None) -> None:
+        self._emit("on_event", EventRecord(self._t(self._now_us if t_us is None else t_us), kind, detail))
+
+    # -- protocol helpers --------------------------------------------------
+    def _unwrap(self, wire: int) -> int:
+        if wire == NO_SEGMENT:
+            return -1
+        base = self._oldest - self._oldest % WIRE_SEGMENTS
+        idx = base + wire
+        return idx + WIRE_SEGMENTS if idx < self._oldest else idx
+
+    def _command(self, message: NamedTuple) -> msg.Ack:
+        ack = self.client.command(message, check=False)
+        self._last_tx_dev_us = self._now_us
+        return ack
+
+    def _device_command(self, seg: Segment) -> NamedTuple:
+        a, wire = seg.action, seg.index % WIRE_SEGMENTS
+        if isinstance(a, Move):
+            return msg.MoveTo(wire, round(a.target_turns * self.spt), max(1, round(a.rate_turns_per_s * self.spt)),
+                              max(1, round(a.accel_turns_per_s2 * self.spt)))
+        if isinstance(a, Hold):
+            return msg.Dwell(wire, round(a.duration_s * 1e6))
+        if isinstance(a, SetHeater):
+            return msg.SetHeater(wire, round(a.voltage_V * 1000))
+        if isinstance(a, SetSampling):
+            return msg.SetSampling(wire, round(a.period_s * 1e6))
+        raise TypeError(f"segment {seg.index} ({seg.kind}) has no device command")
+
+    # -- main loop -----------------------------------------------------------
+    def run(self) -> RunStop:
+        wall0 = time.monotonic()
+        plan = self.plan
+        summary = plan.summary()
+        ident = self.ident
+        self._emit("on_start", RunStart(
+            plan_name=plan.name, protocol_text=plan.source_text, protocol_path=plan.path,
+            bench_text=self.bench.source_text, bench_path=self.bench.path, backend=self.backend,
+            port=self.port_name, firmware=f"{ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}",
+            identity=ident._asdict(), n_segments=len(plan.segments),
+            estimated_duration_s=summary.duration_s, metadata=dict(plan.metadata)))
+        status, reason = "success", "all segments done"
+        try:
+            self._setup()
+            while self._oldest < len(plan.segments):
+                self._feed()
+                self._pump()
+            self._teardown()
+        except KeyboardInterrupt:
+            status, reason = "aborted", "interrupted by the user (Ctrl-C); motor stopped, heater off"
+            self._safe_stop()
+        except RunFailed as exc:
+            status, reason = "failed", str(exc)
+            self._safe_stop()
+        except DeviceError as exc:
+            status, reason = "failed", str(exc)
+            self._safe_stop()
+        self._flush_rows()
+        self._close_open_segments()
+        stop = RunStop(status, reason, self._t(self._now_us), self.samples, self.samples_lost,
+                       self._segments_done, time.monotonic() - wall0)
+        self._emit("on_stop", stop)
+        return stop
+
+    def _setup(self) -> None:
+        self._command(msg.Heartbeat())
+        while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
+            self._pump()
+        if self.simulated:
+            self._command(msg.SimSetLoad(round(self._load_g * 1000)))
+        self._queued(msg.SetSampling(NO_SEGMENT, round(self.plan.sampling_period_s * 1e6)), "set sampling")
+
+    def _teardown(self) -> None:
+        self._queued(msg.SetHeater(NO_SEGMENT, 0), "heater off")
+        self._queued(msg.SetSampling(NO_SEGMENT, 0), "sampling off")
+        for m in self.client.poll():       # samples taken up to the end
+            self._handle(m)
+
+    def _queued(self, message: NamedTuple, what: str) -> None:
+        ack = self._command(message)
+        while ack.status == msg.Status.QUEUE_FULL:
+            self._pump()
+            ack = self._command(message)
+        if ack.status != msg.Status.OK:
+            raise RunFailed(f"device refused {what}: {msg.Status(ack.status).name.lower()}")
+        self._free = ack.queue_free
+
+    def _safe_stop(self) -> None:
+        try:
+            self.client.stop()
+            self._event("stop_sent", "STOP sent: motor halted, heater off, queue cleared")
+            for m in self.client.poll():
+                self._handle(m)
+        except (DeviceError, KeyboardInterrupt):
+            pass
+
+    def _feed(self) -> None:
+        """Send plan segments while the device has room; handle a prompt when idle."""
+        segs = self.plan.segments
+        while self._next < len(segs) and self._free > 0:
+            seg = segs[self._next]
+            if isinstance(seg.action, Prompt):
+                if self._oldest < self._next:
+                    return                 # the device must finish what it has first
+                self._do_prompt(seg)
+                continue
+            ack = self._command(self._device_command(seg))
+            if ack.status == msg.Status.QUEUE_FULL:
+                self._free = 0
+                return
+            if ack.status != msg.Status.OK:
+                raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
+                                f"{msg.Status(ack.status).name.lower()}")
+            self._free = ack.queue_free
+            self._next += 1
+
+    def _do_prompt(self, seg: Segment) -> None:
+        a: Prompt = seg.action  # type: ignore[assignment]
+        self._flush_rows()
+        t_start = self._t(self._now_us)
+        self._prompt_segment = seg.index
+        self._event("prompt", a.text)
+        self.operator.answer(a.text, a.load_g)
+        if a.load_g is not None:
+            self._load_g = float(a.load_g)
+            if self.simulated:
+                self._command(msg.SimSetLoad(round(a.load_g * 1000)))
+            self._event("load", f"load now {a.load_g:g} g ({a.load_g * G_N_PER_G:.4g} N)")
+        self._prompt_segment = None
+        self._finish_segment(seg.index, t_start, self._t(self._now_us), True)
+        self._next += 1
+
+    def _pump(self) -> None:
+        """Read and handle what the device sent; heartbeat; detect silence."""
+        messages = self.client.poll()
+        wall = time.monotonic()
+        if messages:
+            self._last_rx_wall = wall
+            for m in messages:
+                self._handle(m)
+        elif wall - self._last_rx_wall > self._silence_s:
+            raise RunFailed(f"lost connection: the device on {self.port_name} has been silent for "
+                            f"{wall - self._last_rx_wall:.1f} s")
+        if len(self._rows) >= BLOCK_SAMPLES or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
+            self._flush_rows()
+        if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_s
+                or wall - self.client.last_tx_wall >= self._heartbeat_s):
+            self._command(msg.Heartbeat())
+
+    # -- incoming messages -----------------------------------------------------
+    def _handle(self, m: NamedTuple) -> None:
+        if isinstance(m, msg.Sample):
+            self._on_sample(m)
+        elif isinstance(m, msg.Event):
+            self._on_event(m)
+        elif isinstance(m, msg.QueueStatus):
+            self._now_us = max(self._now_us, m.t_us)
+            if self._t0_us is None:
+                self._t0_us = m.t_us
+            self._free = m.queue_free
+            if m.fault:
+                raise RunFailed(f"device fault latched: {msg.Fault(m.fault).name.lower()}")
+            if not m.executing and m.queue_free == self.ident.queue_slots and self._oldest < self._next:
+                # idle with an empty queue: whatever was sent is done, even if its
+                # SEGMENT_DONE event was lost on the line
+                self._flush_rows()
+                for idx in range(self._oldest, self._next):
+                    if not self._done[idx] and not isinstance(self.plan.segments[idx].action, Prompt):
+                        start = self._t_start[idx]
+                        t_end = self._t(m.t_us)
+                        self._finish_segment(idx, t_end if np.isnan(start) else float(start), t_end, True)
+        elif isinstance(m, msg.Ack):
+            self._free = m.queue_free
+        elif isinstance(m, msg.Boot):
+            raise RunFailed("the device rebooted during the run (power or reset?); data so far kept")
+
+    def _on_sample(self, s: msg.Sample) -> None:
+        self._now_us = max(self._now_us, s.t_us)
+        if self._last_counter is not None:
+            gap = (s.counter - self._last_counter - 1) & 0xFFFFFFFF
+            if gap:
+                self.samples_lost += gap
+                self._event("sample_gap", f"{gap} sample(s) lost before counter {s.counter}", s.t_us)
+        self._last_counter = s.counter
+        seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
+        self._rows.append((s.t_us, s.step_position, s.position_raw, s.resistance_raw, s.adc_flags,
+                           s.heater_mV, s.motor_moving, seg, s.counter, self._load_g))
+        self.samples += 1
+
+    def _on_event(self, e: msg.Event) -> None:
+        self._now_us = max(self._now_us, e.t_us)
+        kind = e.kind
+        if kind == msg.EventKind.SEGMENT_STARTED:
+            self._free = min(self._free + 1, self.ident.queue_slots)
+            idx = self._unwrap(e.segment)
+            if 0 <= idx < len(self._t_start):
+                self._t_start[idx] = self._t(e.t_us)
+        elif kind == msg.EventKind.SEGMENT_DONE:
+            idx = self._unwrap(e.segment)
+            if 0 <= idx < len(self._done) and not self._done[idx]:
+                self._flush_rows()
+                start = self._t_start[idx]
+                self._finish_segment(idx, self._t(e.t_us) if np.isnan(start) else float(start), self._t(e.t_us), True)
+        elif kind == msg.EventKind.FAULT:
+            raise RunFailed(f"device fault: {msg.Fault(e.code).name.lower()} (segment {self._unwrap(e.segment)})")
+        elif kind == msg.EventKind.QUEUE_EMPTY:
+            if self._next < len(self.plan.segments) and not isinstance(self.plan.segments[self._next].action, Prompt):
+                self._event("queue_underrun", "device ran out of queued commands before the plan ended", e.t_us)
+        else:
+            name = msg.EventKind(kind).name.lower() if kind in msg.EventKind._value2member_map_ else str(kind)
+            self._event(name, f"segment {self._unwrap(e.segment)} code {e.code} value {e.value}", e.t_us)
+
+    def _finish_segment(self, idx: int, t_start: float, t_end: float, completed: bool) -> None:
+        seg = self.plan.segments[idx]
+        self._done[idx] = True
+        self._segments_done += completed
+        while self._oldest < len(self._done) and self._done[self._oldest]:
+            self._oldest += 1
+        self._emit("on_segment", SegmentRecord(idx, seg.kind, t_start, t_end, seg.params(), seg.source,
+                                               seg.cycle, completed))
+
+    def _close_open_segments(self) -> None:
+        """Record the segment(s) cut short by an abort or failure as not completed."""
+        for idx in range(self._oldest, self._next):
+            if not self._done[idx] and not np.isnan(self._t_start[idx]):
+                self._finish_segment(idx, float(self._t_start[idx]), self._t(self._now_us), False)
+
+    def _flush_rows(self) -> None:
+        if not self._rows:
+            return
+        a = np.array(self._rows, dtype=np.float64)
+        self._rows = []
+        self._last_block_wall = time.monotonic()
+        cal_p, cal_r = self.bench.position, self.bench.resistance
+        flags = a[:, 4].astype(np.uint8)
+        resistance = cal_r.resistance_ohm(a[:, 3])
+        resistance[(flags & msg.AdcFlags.RESISTANCE_NOT_MEASURED) != 0] = np.nan
+        length = cal_p.length_mm(a[:, 2])
+        length[(flags & msg.AdcFlags.POSITION_INVALID) != 0] = np.nan
+        cols = {
+            "t": (a[:, 0] - (self._t0_us or 0)) / 1e6,
+            "turns": a[:, 1] / self.spt,
+            "length": length,
+            "resistance": resistance,
+            "heater_voltage": a[:, 5] / 1000.0,
+            "load": a[:, 9] * G_N_PER_G,
+            "segment": a[:, 7],
+            "motor_moving": a[:, 6],
+            "counter": a[:, 8],
+            "step_position": a[:, 1],
+            "position_raw": a[:, 2],
+            "resistance_raw": a[:, 3],
+            "adc_flags": flags,
+        }
+        block = SampleBlock({k: np.asarray(v).astype(SAMPLE_COLUMNS[k][0]) for k, v in cols.items()})
+        self._emit("on_samples", block)

@@ -1,0 +1,102 @@
+"""The HDF5 writer against the run-file contract, fed with synthetic documents."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from tsa_bench.runner.documents import (
+    SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord,
+)
+from tsa_bench.store import RunWriter
+from tsa_bench.store.inspect import RunFileError, inspect_run
+
+REQUIRED_UNITS = {"t": "s", "turns": "turn", "length": "mm", "resistance": "ohm", "heater_voltage": "V",
+                  "load": "N", "segment": "1", "motor_moving": "1"}
+
+
+def start_doc() -> RunStart:
+    return RunStart(plan_name="p", protocol_text="name: p\nsteps: []\n", protocol_path="p.yaml",
+                    bench_text="name: b\n", bench_path="b.yaml", backend="sim", port="sim://", firmware="0.1.0",
+                    identity={"steps_per_turn": 3200}, n_segments=2, estimated_duration_s=10.0,
+                    metadata={"ply": 4})
+
+
+def block(t0: float, n: int) -> SampleBlock:
+    t = t0 + 0.1 * np.arange(n)
+    cols = {name: np.zeros(n, dtype=dtype) for name, (dtype, _) in SAMPLE_COLUMNS.items()}
+    cols["t"] = t
+    cols["length"] = 280 - t
+    cols["resistance"] = np.where(np.arange(n) % 2, np.nan, 20.0)
+    cols["counter"] = (t0 * 10 + np.arange(n)).astype("u4")
+    return SampleBlock(cols)
+
+
+def test_file_meets_contract(tmp_path):
+    path = tmp_path / "run.h5"
+    w = RunWriter(path)
+    w.on_start(start_doc())
+    with h5py.File(path, "r") as f:  # readable while running, status says so
+        assert f.attrs["exit_status"] == "running"
+    w.on_samples(block(0, 10))
+    w.on_segment(SegmentRecord(0, "move", 0.0, 0.5, {"target_turns": 1.0}, "p.yaml:3", None, True))
+    w.on_samples(block(1.0, 5))
+    w.on_event(EventRecord(1.2, "prompt", "hang 200 g"))
+    w.on_segment(SegmentRecord(1, "hold", 0.5, 1.4, {"duration_s": 0.9}, "p.yaml:4", 2, True))
+    w.on_stop(RunStop("success", "all segments done", 1.4, 15, 0, 2, 0.1))
+    with h5py.File(path, "r") as f:
+        a = f.attrs
+        assert a["format"] == "tsa-bench/run" and a["exit_status"] == "success"
+        for key in ("format_version", "created", "backend", "firmware", "reason"):
+            assert key in a
+        assert f["config/protocol"][()].decode() == "name: p\nsteps: []\n"
+        lengths = {name: len(ds) for name, ds in f["samples"].items()}
+        assert set(lengths.values()) == {15}
+        for name, units in REQUIRED_UNITS.items():
+            assert f["samples"][name].attrs["units"] == units
+            assert f["samples"][name].chunks is not None and f["samples"][name].maxshape == (None,)
+        assert np.isnan(f["samples/resistance"][1])
+        segs = f["segments"][()]
+        assert list(segs["index"]) == [0, 1] and segs["kind"][1] == b"hold"
+        assert json.loads(segs["params"][0]) == {"target_turns": 1.0}
+        assert segs["cycle"][0] == -1 and segs["cycle"][1] == 2
+        assert f["events"][0]["kind"] == b"prompt"
+
+
+def test_segment_end_flushes(tmp_path):
+    path = tmp_path / "run.h5"
+    w = RunWriter(path, flush_interval_s=1e9)
+    w.on_start(start_doc())
+    w.on_samples(block(0, 7))
+    with h5py.File(path, "r") as f:
+        assert len(f["samples/t"]) == 0  # buffered, not yet flushed
+    w.on_segment(SegmentRecord(0, "move", 0.0, 0.7, {}, "p.yaml:3", None, True))
+    with h5py.File(path, "r") as f:
+        assert len(f["samples/t"]) == 7 and len(f["segments"]) == 1
+
+
+def test_inspect_reports_gaps_and_status(tmp_path):
+    path = tmp_path / "run.h5"
+    w = RunWriter(path)
+    w.on_start(start_doc())
+    b = block(0, 10)
+    b.columns["counter"][5:] += 3
+    w.on_samples(b)
+    w.on_stop(RunStop("aborted", "Ctrl-C", 1.0, 10, 3, 0, 0.1))
+    info = inspect_run(path)
+    assert info.counter_gaps == 3 and info.attrs["exit_status"] == "aborted" and info.n_samples == 10
+
+
+def test_inspect_rejects_non_run_files(tmp_path):
+    with pytest.raises(RunFileError, match="no such file"):
+        inspect_run(tmp_path / "missing.h5")
+    (tmp_path / "text.h5").write_text("not hdf5")
+    with pytest.raises(RunFileError, match="not a readable HDF5"):
+        inspect_run(tmp_path / "text.h5")
+    with h5py.File(tmp_path / "other.h5", "w") as f:
+        f.attrs["format"] = "something-else"
+    with pytest.raises(RunFileError, match="format"):
+        inspect_run(tmp_path / "other.h5")
