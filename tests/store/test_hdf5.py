@@ -68,7 +68,7 @@ def test_file_meets_contract(tmp_path):
 
 def test_segment_end_flushes(tmp_path):
     path = tmp_path / "run.h5"
-    w = RunWriter(path, flush_interval_s=1e9)
+    w = RunWriter(path, flush_interval_s=1e9, min_flush_interval_s=0.0)
     w.on_start(start_doc())
     w.on_samples(block(0, 7))
     with h5py.File(path, "r") as f:

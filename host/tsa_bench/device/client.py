@@ -112,13 +112,30 @@ class BenchClient:
         return self._seq
 
     def _await(self, predicate, timeout_s: float) -> NamedTuple | None:
-        """Read until a message matching ``predicate`` arrives; keep the others."""
+        """Read until a message matching ``predicate`` arrives; keep the others.
+
+        Times out after ``timeout_s`` of wall time or of device time (seen in the
+        timestamps of what arrives meanwhile), whichever passes first: on a real
+        device they agree, and a simulated device in virtual time must not run
+        seconds ahead (and trip its own watchdog) while the host waits for an ACK.
+        """
         deadline = time.monotonic() + timeout_s
+        t0_us: int | None = None
         while True:
+            found = None
+            t_us = None
             for m in self._read():
-                if predicate(m):
-                    return m
-                self._inbox.append(m)
+                if found is None and predicate(m):
+                    found = m
+                else:
+                    self._inbox.append(m)  # everything else, in order, for poll()
+                t_us = getattr(m, "t_us", t_us)
+            if found is not None:
+                return found
+            if t_us is not None:
+                t0_us = t_us if t0_us is None else t0_us
+                if (t_us - t0_us) / 1e6 >= timeout_s:
+                    return None
             if time.monotonic() >= deadline:
                 return None
 

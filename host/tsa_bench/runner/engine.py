@@ -83,6 +83,7 @@ class Runner:
         self._next = 0                  # next plan segment to send
         self._oldest = 0                # oldest segment not yet done
         self._free = self.ident.queue_slots
+        self._last_sent_wire = NO_SEGMENT
         self._t0_us: int | None = None
         self._now_us = 0
         self._last_tx_dev_us = 0
@@ -95,7 +96,7 @@ class Runner:
         self.samples = 0
         self.samples_lost = 0
         self._segments_done = 0
-        self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 4000.0)
+        self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 8000.0)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
     # -- emit ------------------------------------------------------------------
@@ -198,7 +199,10 @@ class Runner:
             self.client.stop()
             self._event("stop_sent", "STOP sent: motor halted, heater off, queue cleared")
             for m in self.client.poll():
-                self._handle(m)
+                try:
+                    self._handle(m)
+                except RunFailed as exc:  # already stopping; keep it as an event
+                    self._event("fault", str(exc))
         except (DeviceError, KeyboardInterrupt):
             pass
 
@@ -220,6 +224,7 @@ class Runner:
                 raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
                                 f"{msg.Status(ack.status).name.lower()}")
             self._free = ack.queue_free
+            self._last_sent_wire = seg.index % WIRE_SEGMENTS
             self._next += 1
 
     def _do_prompt(self, seg: Segment) -> None:
@@ -268,10 +273,11 @@ class Runner:
             self._free = m.queue_free
             if m.fault:
                 raise RunFailed(f"device fault latched: {msg.Fault(m.fault).name.lower()}")
-            if not m.executing and m.queue_free == self.ident.queue_slots and self._oldest < self._next:
-                # idle with an empty queue: whatever was sent is done, even if its
-                # SEGMENT_DONE event was lost on the line
-                self._flush_rows()
+            if (not m.executing and m.queue_free == self.ident.queue_slots and self._oldest < self._next
+                    and m.segment == self._last_sent_wire):
+                # idle with an empty queue after the last segment sent: whatever was sent
+                # is done, even if a SEGMENT_DONE event was lost on the line (a status
+                # produced before the last send names an older segment and is ignored)
                 for idx in range(self._oldest, self._next):
                     if not self._done[idx] and not isinstance(self.plan.segments[idx].action, Prompt):
                         start = self._t_start[idx]
@@ -302,23 +308,35 @@ class Runner:
             self._free = min(self._free + 1, self.ident.queue_slots)
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._t_start):
+                self._finish_before(idx, e.t_us)
                 self._t_start[idx] = self._t(e.t_us)
         elif kind == msg.EventKind.SEGMENT_DONE:
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._done) and not self._done[idx]:
-                self._flush_rows()
+                self._finish_before(idx, e.t_us)
                 start = self._t_start[idx]
                 self._finish_segment(idx, self._t(e.t_us) if np.isnan(start) else float(start), self._t(e.t_us), True)
         elif kind == msg.EventKind.FAULT:
             raise RunFailed(f"device fault: {msg.Fault(e.code).name.lower()} (segment {self._unwrap(e.segment)})")
         elif kind == msg.EventKind.QUEUE_EMPTY:
-            if self._next < len(self.plan.segments) and not isinstance(self.plan.segments[self._next].action, Prompt):
+            if (0 < self._next < len(self.plan.segments)
+                    and not isinstance(self.plan.segments[self._next].action, Prompt)):
                 self._event("queue_underrun", "device ran out of queued commands before the plan ended", e.t_us)
         else:
             name = msg.EventKind(kind).name.lower() if kind in msg.EventKind._value2member_map_ else str(kind)
             self._event(name, f"segment {self._unwrap(e.segment)} code {e.code} value {e.value}", e.t_us)
 
+    def _finish_before(self, idx: int, t_us: int) -> None:
+        """The device runs segments in order: any earlier one still open is done by now
+        (its SEGMENT_DONE was lost on the line)."""
+        for j in range(self._oldest, idx):
+            if not self._done[j] and not isinstance(self.plan.segments[j].action, Prompt):
+                start = self._t_start[j]
+                t = self._t(t_us)
+                self._finish_segment(j, t if np.isnan(start) else float(start), t, True)
+
     def _finish_segment(self, idx: int, t_start: float, t_end: float, completed: bool) -> None:
+        self._flush_rows()  # consumers get the samples up to a segment end before the segment
         seg = self.plan.segments[idx]
         self._done[idx] = True
         self._segments_done += completed

@@ -104,7 +104,7 @@ def plant_from_config(plant_cfg: Mapping[str, Any], seed: int | None = None) -> 
     check_keys(plant_cfg, PLANT_KEYS, where)
     geometry = TsaGeometry(
         untwisted_length_mm=number_param(plant_cfg, "untwisted_length_mm", where, 248.0, minimum=1e-9),
-        radius_mm=number_param(plant_cfg, "radius_mm", where, 0.52, minimum=0.0),
+        radius_mm=number_param(plant_cfg, "radius_mm", where, 0.51, minimum=0.0),
         stiffness_N=number_param(plant_cfg, "stiffness_N", where, 31.88, minimum=1e-9),
     )
     if seed is None:

@@ -1,0 +1,258 @@
+"""``sim://`` - a pyserial port with a simulated bench device behind it.
+
+Units: virtual (device) time and wall time in s; ``speed`` is virtual s per wall s.
+
+URL: ``sim://[?bench=PATH][&speed=X][&seed=N]`` - every parameter optional: ``bench``
+defaults to the shipped configs/bench/sim.yaml, ``speed`` absent or 0 means as fast as
+possible, ``seed`` overrides the bench file's plant seed. Bad parameters raise
+``ValueError`` naming them. Importing :mod:`tsa_bench.transport` registers the scheme,
+so ``serial.serial_for_url("sim://?speed=0", timeout=0.1)`` returns :class:`Serial`.
+
+Contract: ``open()`` builds a fresh :class:`SimDevice` (reachable as ``.device``) and
+lets it announce BOOT, like the DTR reset of opening a real Mega. ``write()`` hands the
+bytes to the device at once (replies are buffered immediately). ``read(size)`` returns
+buffered output; with nothing buffered it advances virtual time by at most one
+quantum, ``min(watchdog_s / 4, 0.5)`` s, per call - stopping early at the first
+non-SAMPLE frame or ``size`` bytes - so a host that heartbeats every ``watchdog_s / 4``
+of device time never trips the watchdog; it may return ``b""`` when the device said
+nothing during that quantum (also without a timeout). ``in_waiting`` advances the same
+way without ever sleeping. With ``speed`` virtual time never runs ahead of wall time x
+speed: ``read`` sleeps (within its timeout) until it may advance. Speed is a cap, not a
+clock: virtual time still only advances when the host reads, so a host busy for a
+moment (a file flush, a garbage collection) never finds the device seconds ahead with
+its watchdog tripped. At full speed no call sleeps: dwells cost no wall time.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import urllib.parse
+from dataclasses import dataclass
+
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+
+from tsa_bench.bench.config import BenchConfig, load_bench
+from tsa_bench.sim.device import SimDevice
+
+__all__ = ["Serial", "SimUrl", "parse_sim_url", "Pacer", "quantum_s"]
+
+URL_HELP = 'expected "sim://[?bench=PATH][&speed=X][&seed=N]"'
+#: Output bytes one ``in_waiting`` poll lets the device produce at most.
+POLL_CHUNK_BYTES = 4096
+
+
+@dataclass(frozen=True)
+class SimUrl:
+    """Parsed ``sim://`` parameters; ``speed`` None = as fast as possible."""
+
+    bench_path: str | None = None
+    speed: float | None = None
+    seed: int | None = None
+
+    def bench(self) -> BenchConfig:
+        return load_bench(self.bench_path)
+
+
+def parse_sim_url(url: str) -> SimUrl:
+    """Parse a ``sim://`` URL; raise ValueError naming the bad part."""
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme.lower() != "sim":
+        raise ValueError(f"{URL_HELP}: {url!r} does not start with sim://")
+    if parts.netloc or parts.path not in ("", "/") or parts.fragment:
+        raise ValueError(f"{URL_HELP}: unexpected {parts.netloc + parts.path + parts.fragment!r} in {url!r}")
+    try:
+        query = urllib.parse.parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
+    except ValueError as exc:
+        raise ValueError(f"{URL_HELP}: malformed query {parts.query!r} ({exc})") from None
+    unknown = sorted(set(query) - {"bench", "speed", "seed"})
+    if unknown:
+        raise ValueError(f"{URL_HELP}: unknown parameter(s) {unknown} in {url!r}")
+    values: dict[str, str] = {}
+    for key, found in query.items():
+        if len(found) != 1:
+            raise ValueError(f"{URL_HELP}: parameter '{key}' given {len(found)} times")
+        values[key] = found[0]
+    bench_path = values.get("bench") or None
+    speed: float | None = None
+    if "speed" in values:
+        try:
+            speed = float(values["speed"])
+        except ValueError:
+            raise ValueError(f"{URL_HELP}: speed={values['speed']!r} is not a number") from None
+        if not math.isfinite(speed) or speed < 0:
+            raise ValueError(f"{URL_HELP}: speed={values['speed']!r} must be a finite number >= 0")
+        speed = speed or None
+    seed: int | None = None
+    if "seed" in values:
+        try:
+            seed = int(values["seed"])
+        except ValueError:
+            raise ValueError(f"{URL_HELP}: seed={values['seed']!r} is not an integer") from None
+    return SimUrl(bench_path, speed, seed)
+
+
+def quantum_s(device: SimDevice) -> float:
+    """Most virtual time one read may run: ``min(watchdog_s / 4, 0.5)`` s."""
+    return min(device.limits.watchdog_s / 4.0, 0.5)
+
+
+class Pacer:
+    """How far a device may run now: one quantum per step, capped at wall time x speed."""
+
+    def __init__(self, device: SimDevice, speed: float | None) -> None:
+        self.device = device
+        self.speed = speed or None
+        self.quantum_s = quantum_s(device)
+        self.t0_wall = time.monotonic()
+
+    def allowed_s(self) -> float:
+        """Virtual seconds the device may advance now (<= 0: it must wait)."""
+        if self.speed is None:
+            return self.quantum_s
+        ahead = (time.monotonic() - self.t0_wall) * self.speed - self.device.now_s
+        return min(self.quantum_s, ahead)
+
+    def wait_s(self) -> float:
+        """Wall seconds until the device may advance again (0 when it may now)."""
+        if self.speed is None:
+            return 0.0
+        return max(0.0, (self.device.now_s - (time.monotonic() - self.t0_wall) * self.speed) / self.speed)
+
+
+class Serial(SerialBase):
+    """pyserial port backed by a :class:`SimDevice` (see module docstring)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.device: SimDevice | None = None
+        self.sim_url: SimUrl | None = None
+        self._pacer: Pacer | None = None
+        self._rx = bytearray()
+        super().__init__(*args, **kwargs)
+
+    # -- lifecycle --------------------------------------------------------
+    def open(self) -> None:
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        self.sim_url = parse_sim_url(self._port)
+        self.device = SimDevice(self.sim_url.bench(), seed=self.sim_url.seed)
+        self._pacer = Pacer(self.device, self.sim_url.speed)
+        self.device.boot()
+        self._rx = bytearray(self.device.take_output())
+        self.is_open = True
+
+    def close(self) -> None:
+        self.is_open = False
+
+    def from_url(self, url: str) -> SimUrl:
+        """Parse (and remember) the URL's parameters without opening."""
+        self.sim_url = parse_sim_url(url)
+        return self.sim_url
+
+    def _reconfigure_port(self) -> None:
+        """Nothing to configure: baud rate and framing do not matter to the simulation."""
+
+    def _update_dtr_state(self) -> None:
+        pass
+
+    def _update_rts_state(self) -> None:
+        pass
+
+    def _update_break_state(self) -> None:
+        pass
+
+    # -- bytes ------------------------------------------------------------
+    def _check_open(self) -> SimDevice:
+        if not self.is_open or self.device is None:
+            raise PortNotOpenError()
+        return self.device
+
+    def _pump(self, max_bytes: int, deadline: float | None) -> None:
+        """Advance the device by at most one quantum until it says something.
+
+        ``deadline`` (monotonic) bounds sleeping for the speed cap; None = never sleep.
+        """
+        dev, pacer = self._check_open(), self._pacer
+        assert pacer is not None
+        budget = pacer.quantum_s
+        while budget > 1e-9 and not self._rx:
+            step = min(budget, pacer.allowed_s())
+            if step <= 0:
+                remaining = 0.0 if deadline is None else deadline - time.monotonic()
+                if remaining <= 0:
+                    return
+                time.sleep(min(remaining, max(pacer.wait_s(), 1e-4)))
+                continue
+            budget -= dev.advance(step, max_bytes)
+            self._rx += dev.take_output()
+
+    @property
+    def in_waiting(self) -> int:
+        """Buffered bytes; when none, the device first runs (one quantum, never sleeping)."""
+        self._check_open()
+        if not self._rx:
+            self._pump(POLL_CHUNK_BYTES, None)
+        return len(self._rx)
+
+    @property
+    def out_waiting(self) -> int:
+        self._check_open()
+        return 0
+
+    def read(self, size: int = 1) -> bytes:
+        self._check_open()
+        if size <= 0:
+            return b""
+        if not self._rx:
+            timeout = self._timeout
+            if timeout is None:
+                deadline: float | None = math.inf
+            else:
+                deadline = time.monotonic() + timeout if timeout > 0 else None
+            self._pump(size, deadline)
+        data = bytes(self._rx[:size])
+        del self._rx[:size]
+        return data
+
+    def write(self, data: bytes) -> int:
+        dev = self._check_open()
+        data = to_bytes(data)
+        dev.receive(data)
+        self._rx += dev.take_output()
+        return len(data)
+
+    def reset_input_buffer(self) -> None:
+        dev = self._check_open()
+        self._rx.clear()
+        dev.take_output()
+
+    def reset_output_buffer(self) -> None:
+        self._check_open()
+
+    def cancel_read(self) -> None:
+        pass
+
+    def cancel_write(self) -> None:
+        pass
+
+    @property
+    def cts(self) -> bool:
+        self._check_open()
+        return True
+
+    @property
+    def dsr(self) -> bool:
+        self._check_open()
+        return True
+
+    @property
+    def ri(self) -> bool:
+        self._check_open()
+        return False
+
+    @property
+    def cd(self) -> bool:
+        self._check_open()
+        return True

@@ -1,0 +1,79 @@
+#!/usr/bin/env python3
+"""Speed of the simulated bench, end to end, and of the host codec.
+
+Prints, for the lifetime protocol (596 cycles, ~2.8 h of device time) run through
+plant + simulated device + codec + runner + HDF5 writer, the wall time and the
+real-time factor (target >= 500 on a 2-core machine), and the host codec's decode
+throughput in frames/s on a recorded-like stream of SAMPLE frames.
+
+    python scripts/bench/sim_speed.py [--protocol configs/protocols/lifetime.yaml] [--repeat 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import serial
+
+import tsa_bench.transport  # noqa: F401  (registers sim://)
+from tsa_bench.bench import load_bench
+from tsa_bench.device import BenchClient
+from tsa_bench.plan import load_plan
+from tsa_bench.protocol import MessageDecoder, encode, msg
+from tsa_bench.runner import AutoOperator, Runner
+from tsa_bench.store import RunWriter
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run_once(protocol: Path, min_flush_interval_s: float = 0.05) -> tuple[float, float, int, int]:
+    bench = load_bench(None)
+    plan = load_plan(protocol, bench.limits)
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        port = serial.serial_for_url("sim://?seed=1", timeout=0.05)
+        client = BenchClient(port, ack_timeout_s=bench.ack_timeout_s)
+        client.connect(bench.boot_timeout_s)
+        writer = RunWriter(Path(tmp) / "run.h5", min_flush_interval_s=min_flush_interval_s)
+        stop = Runner(client, plan, bench, [writer], AutoOperator(), backend="sim", port_name="sim://").run()
+        port.close()
+        wall = time.perf_counter() - t0
+    assert stop.exit_status == "success", stop.reason
+    return wall, stop.t_end, stop.samples, writer.flushes
+
+
+def codec_throughput(n: int = 200_000) -> float:
+    frames = b"".join(encode(msg.Sample(i, 1000 * i, i, i % 30000, -i, 0, 0, i & 1, i % 65535), i & 0xFFFF)
+                      for i in range(n))
+    decoder = MessageDecoder()
+    t0 = time.perf_counter()
+    got = 0
+    for k in range(0, len(frames), 4096):
+        got += len(decoder.feed(frames[k:k + 4096]))
+    dt = time.perf_counter() - t0
+    assert got == n
+    return n / dt
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--protocol", type=Path, default=ROOT / "configs" / "protocols" / "lifetime.yaml")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--every-segment", action="store_true",
+                    help="also run with one file flush per segment end (no coalescing), for comparison")
+    args = ap.parse_args()
+    variants = [("default", 0.05)] + ([("flush every segment", 0.0)] if args.every_segment else [])
+    for i in range(args.repeat):
+        for label, interval in variants:
+            wall, device_s, samples, flushes = run_once(args.protocol, interval)
+            print(f"end to end  {args.protocol.name} [{label}]: {device_s / 3600:.2f} h of device time, "
+                  f"{samples} samples, {flushes} file flushes in {wall:.2f} s wall -> real-time factor "
+                  f"{device_s / wall:.0f} (target >= 500)")
+    print(f"codec       decode throughput {codec_throughput():,.0f} frames/s (SAMPLE frames, 4 KiB chunks)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,41 @@
+"""Run a plan on the simulated bench in-process and return the run file path."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import serial
+
+import tsa_bench.transport  # noqa: F401  (registers sim://)
+from tsa_bench.bench import load_bench
+from tsa_bench.device import BenchClient
+from tsa_bench.plan import load_plan, load_plan_text
+from tsa_bench.runner import AutoOperator, Runner
+from tsa_bench.store import RunWriter
+
+BENCH = load_bench(None)
+
+
+def open_sim(seed: int = 1, speed: float | None = None):
+    url = f"sim://?seed={seed}" + (f"&speed={speed}" if speed else "")
+    return serial.serial_for_url(url, timeout=0.05)
+
+
+def run_plan(plan, out: Path, *, port=None, seed: int = 1):
+    """Run ``plan`` on the simulated bench (or ``port``); return (RunStop, client, path)."""
+    port = port if port is not None else open_sim(seed)
+    client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
+    client.connect(BENCH.boot_timeout_s)
+    path = out / "run.h5"
+    runner = Runner(client, plan, BENCH, [RunWriter(path)], AutoOperator(), backend="sim", port_name="sim://")
+    stop = runner.run()
+    port.close()
+    return stop, client, path
+
+
+def plan_from_text(text: str):
+    return load_plan_text(text, BENCH.limits, "test.yaml")
+
+
+def shipped_plan(name: str):
+    return load_plan(Path(__file__).resolve().parents[2] / "configs" / "protocols" / name, BENCH.limits)

@@ -1,0 +1,71 @@
+"""Simulated device, acceptance of queued commands: every NAK status and the FIFO."""
+
+from __future__ import annotations
+
+import pytest
+
+from tsa_bench.protocol import msg
+
+S = msg.Status
+SPT = 3200
+MAX_RATE, MAX_ACCEL = 5 * SPT, 100 * SPT
+
+
+@pytest.mark.parametrize("command, status", [
+    (msg.MoveTo(0, SPT, 0, 1000), S.BAD_ARGUMENT),
+    (msg.MoveTo(0, SPT, 1000, 0), S.BAD_ARGUMENT),
+    (msg.MoveBy(0, SPT, 0, 1000), S.BAD_ARGUMENT),
+    (msg.MoveBy(0, SPT, 1000, 0), S.BAD_ARGUMENT),
+    (msg.MoveTo(0, SPT, MAX_RATE + 1, 1000), S.LIMIT_EXCEEDED),
+    (msg.MoveTo(0, SPT, 1000, MAX_ACCEL + 1), S.LIMIT_EXCEEDED),
+    (msg.MoveBy(0, SPT, MAX_RATE + 1, 1000), S.LIMIT_EXCEEDED),
+    (msg.MoveTo(0, 100 * SPT + 1, 1000, 1000), S.LIMIT_EXCEEDED),
+    (msg.MoveTo(0, -10 * SPT - 1, 1000, 1000), S.LIMIT_EXCEEDED),
+    (msg.MoveBy(0, -10 * SPT - 1, 1000, 1000), S.LIMIT_EXCEEDED),
+    (msg.SetHeater(0, 12001), S.LIMIT_EXCEEDED),
+    (msg.SetSampling(0, 999), S.BAD_ARGUMENT),
+    (msg.SetSampling(0, 1), S.BAD_ARGUMENT),
+    # accepted at the edges
+    (msg.MoveTo(0, 100 * SPT, MAX_RATE, MAX_ACCEL), S.OK),
+    (msg.MoveBy(0, -10 * SPT, MAX_RATE, MAX_ACCEL), S.OK),
+    (msg.SetHeater(0, 12000), S.OK),
+    (msg.SetSampling(0, 1000), S.OK),
+    (msg.SetSampling(0, 0), S.OK),
+    (msg.Dwell(0, 0), S.OK),
+])
+def test_acceptance(host, command, status):
+    ack = host.ack(command)
+    assert ack.status == status
+    if status != S.OK:
+        assert ack.queue_free == 16
+        assert not host.dev.active and host.dev.executor.heater_mV == 0
+
+
+def test_move_by_is_checked_against_the_projected_position(host):
+    assert host.ack(msg.MoveBy(0, 90 * SPT, MAX_RATE, MAX_ACCEL)).status == S.OK      # runs for ~18 s
+    assert host.ack(msg.MoveBy(1, 20 * SPT, MAX_RATE, MAX_ACCEL)).status == S.LIMIT_EXCEEDED
+    assert host.ack(msg.MoveBy(1, 10 * SPT, MAX_RATE, MAX_ACCEL)).status == S.OK       # lands on 100 turns
+    assert host.ack(msg.MoveBy(2, 1, MAX_RATE, MAX_ACCEL)).status == S.LIMIT_EXCEEDED
+    assert host.ack(msg.MoveTo(3, 0, MAX_RATE, MAX_ACCEL)).status == S.OK              # absolute resets it
+    assert host.ack(msg.MoveBy(4, -10 * SPT, MAX_RATE, MAX_ACCEL)).status == S.OK
+
+
+def test_queue_full_at_capacity(host):
+    assert host.ack(msg.Dwell(0, 10_000_000)).queue_free == 16     # started at once: not in the FIFO
+    frees = [host.ack(msg.Dwell(1 + i, 1_000_000)).queue_free for i in range(16)]
+    assert frees == list(range(15, -1, -1))
+    refused = host.ack(msg.SetHeater(17, 1000))
+    assert (refused.status, refused.queue_free) == (S.QUEUE_FULL, 0)
+    assert host.dev.executor.heater_mV == 0
+
+
+def test_fault_latched_refuses_queued_commands(host):
+    host.send(msg.MoveBy(0, 20 * SPT, 1000, 1000))
+    host.run(3.0, heartbeat_s=None)                                  # silent host: watchdog
+    assert host.dev.fault == msg.Fault.WATCHDOG
+    for command in (msg.MoveBy(1, SPT, 1000, 1000), msg.Dwell(1, 1000), msg.SetHeater(1, 0),
+                    msg.SetSampling(1, 0), msg.MoveTo(1, 0, 1000, 1000)):
+        assert host.ack(command).status == S.BAD_STATE
+    # immediate commands still work
+    assert host.ack(msg.Stop()).status == S.OK
+    assert host.ack(msg.SimSetLoad(1000)).status == S.OK
