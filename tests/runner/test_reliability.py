@@ -96,3 +96,36 @@ def test_device_refusal_fails_the_run_without_executing_it(tmp_path):
     with h5py.File(path) as f:
         turns = f["samples/turns"][()]
     assert len(turns) == 0 or np.abs(turns).max() == 0
+
+
+class FaultAfter:
+    """Lets the simulated device latch a hardware fault after some reads."""
+
+    def __init__(self, port, reads: int, fault):
+        self._port, self.reads, self.fault = port, reads, fault
+
+    def __getattr__(self, name):
+        return getattr(self._port, name)
+
+    @property
+    def in_waiting(self) -> int:
+        return self._port.in_waiting
+
+    def read(self, size: int = 1) -> bytes:
+        self.reads -= 1
+        if self.reads == 0:
+            self._port.device.inject_fault(self.fault)
+        return self._port.read(size)
+
+
+def test_device_fault_fails_the_run_and_keeps_the_data(tmp_path):
+    from tsa_bench.protocol import msg
+
+    plan = plan_from_text(SHORT)
+    stop, client, path = run_plan(plan, tmp_path, port=FaultAfter(open_sim(), 200, msg.Fault.POSITION_SENSOR))
+    assert stop.exit_status == "failed" and "position_sensor" in stop.reason
+    with h5py.File(path) as f:
+        assert f.attrs["exit_status"] == "failed" and "position_sensor" in f.attrs["reason"]
+        assert len(f["samples/t"]) > 10
+        segs = f["segments"][()]
+    assert 0 < len(segs) < len(plan.segments) and segs["completed"][:-1].all()

@@ -220,12 +220,23 @@ class Runner:
             if ack.status == msg.Status.QUEUE_FULL:
                 self._free = 0
                 return
+            if ack.status == msg.Status.BAD_STATE:
+                self._explain_bad_state()
             if ack.status != msg.Status.OK:
                 raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
                                 f"{msg.Status(ack.status).name.lower()}")
             self._free = ack.queue_free
             self._last_sent_wire = seg.index % WIRE_SEGMENTS
             self._next += 1
+
+    def _explain_bad_state(self) -> None:
+        """A refusal for bad state means a latched fault: report the fault itself (its
+        EVENT may still be waiting in the inbox, else QUEUE_STATUS names it)."""
+        for m in self.client.poll():
+            self._handle(m)
+        self._command(msg.Heartbeat())
+        for m in self.client.poll():
+            self._handle(m)
 
     def _do_prompt(self, seg: Segment) -> None:
         a: Prompt = seg.action  # type: ignore[assignment]

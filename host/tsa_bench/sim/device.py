@@ -303,6 +303,11 @@ class SimDevice:
             command: QueuedCommand = message  # type: ignore[assignment]
             self.executor.push(command, self.now_s)
 
+    def inject_fault(self, fault: msg.Fault) -> None:
+        """Latch ``fault`` now, exactly as a detected hardware fault would (motor halted,
+        heater off, queue cleared, EVENT fault): for testing how hosts handle faults."""
+        self._trip(fault)
+
     def _trip(self, fault: msg.Fault) -> None:
         position = self.executor.halt(self.now_s)
         self.fault = int(fault)
