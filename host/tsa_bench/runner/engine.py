@@ -34,6 +34,10 @@ BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are p
 BLOCK_WALL_S = 0.5            # or this much wall time has passed, or a segment ends
 
 
+def plan_load_known(load_g: float) -> bool:
+    return load_g == load_g  # not NaN
+
+
 class RunFailed(Exception):
     """Ends a run as failed with the given reason."""
 
@@ -88,7 +92,8 @@ class Runner:
         self._now_us = 0
         self._last_tx_dev_us = 0
         self._last_rx_wall = time.monotonic()
-        self._load_g = float(plan.load_g or 0.0)
+        # hanging mass (g) as the protocol declares it; NaN = not declared (unknown)
+        self._load_g = float(plan.load_g) if plan.load_g is not None else float("nan")
         self._prompt_segment: int | None = None
         self._rows: list[tuple] = []
         self._last_block_wall = time.monotonic()
@@ -175,7 +180,7 @@ class Runner:
         self._command(msg.Heartbeat())
         while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
             self._pump()
-        if self.simulated:
+        if self.simulated and plan_load_known(self._load_g):
             self._command(msg.SimSetLoad(round(self._load_g * 1000)))
         self._queued(msg.SetSampling(NO_SEGMENT, round(self.plan.sampling_period_s * 1e6)), "set sampling")
 

@@ -57,6 +57,14 @@ def _attr(v: Any) -> Any:
     return v
 
 
+def _kind_counts(rows: np.ndarray | None) -> Counter[str]:
+    """How many rows of a /segments or /events table have each ``kind``."""
+    counts: Counter[str] = Counter()
+    if rows is not None and len(rows) and "kind" in (rows.dtype.names or ()):
+        counts.update(k.decode() if isinstance(k, bytes) else str(k) for k in rows["kind"])
+    return counts
+
+
 def inspect_run(path: str | Path) -> RunInfo:
     p = Path(path)
     if not p.exists():
@@ -91,23 +99,13 @@ def inspect_run(path: str | Path) -> RunInfo:
         if "counter" in f["samples"] and n > 1:
             c = f["samples/counter"][()].astype(np.int64)
             gaps = int(np.clip(np.diff(c) - 1, 0, None).sum())
-        seg_kinds: Counter[str] = Counter()
-        completed = 0
-        n_seg = 0
-        if "segments" in f:
-            segs = f["segments"][()]
-            n_seg = len(segs)
-            if n_seg:
-                seg_kinds.update(k.decode() if isinstance(k, bytes) else str(k) for k in segs["kind"])
-                if "completed" in segs.dtype.names:
-                    completed = int(segs["completed"].sum())
-        ev_kinds: Counter[str] = Counter()
-        n_ev = 0
-        if "events" in f:
-            ev = f["events"][()]
-            n_ev = len(ev)
-            if n_ev:
-                ev_kinds.update(k.decode() if isinstance(k, bytes) else str(k) for k in ev["kind"])
+        segs = f["segments"][()] if "segments" in f else None
+        seg_kinds = _kind_counts(segs)
+        completed = int(segs["completed"].sum()) if segs is not None and "completed" in (segs.dtype.names or ()) else 0
+        events = f["events"][()] if "events" in f else None
+        ev_kinds = _kind_counts(events)
+        n_seg = 0 if segs is None else len(segs)
+        n_ev = 0 if events is None else len(events)
         for key in ("device_identity", "metadata"):
             if isinstance(attrs.get(key), str):
                 try:
