@@ -22,6 +22,8 @@ def test_check_detects_a_stale_file(repo_root, tmp_path, monkeypatch):
     stale.write_text("# old\n")
     monkeypatch.setattr(gen_protocol, "PY_OUT", stale)
     monkeypatch.setattr(gen_protocol, "MD_OUT", tmp_path / "messages.md")
+    monkeypatch.setattr(gen_protocol, "C_OUT", tmp_path / "protocol_catalogue.h")
+    monkeypatch.setattr(gen_protocol, "VECTORS_OUT", tmp_path / "golden_vectors.inc")
     assert gen_protocol.main(["--check"]) == 1
     assert gen_protocol.main([]) == 0
     assert gen_protocol.main(["--check"]) == 0

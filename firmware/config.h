@@ -1,0 +1,50 @@
+// Bench constants compiled into the firmware. The values mirror
+// configs/bench/arduino-mega.yaml (tests/firmware/test_firmware_config.py checks they
+// agree); the device reports them in IDENTITY and enforces the limits itself.
+#pragma once
+#include <stdint.h>
+
+namespace cfg {
+
+// Firmware version reported in BOOT and IDENTITY.
+static const uint8_t FW_MAJOR = 0;
+static const uint8_t FW_MINOR = 1;
+static const uint8_t FW_PATCH = 0;
+
+// Serial: UART0 at 250000 baud with U2X (0 % error at 16 MHz).
+static const uint32_t BAUD = 250000UL;
+
+// NEMA 17HS4401 (200 full steps/turn) with the A4988 at 1/16 microstepping.
+static const uint16_t STEPS_PER_TURN = 3200;
+// Twist limits: -10 .. 100 turns.
+static const int32_t MIN_TWIST_STEPS = -32000L;
+static const int32_t MAX_TWIST_STEPS = 320000L;
+// 5 turns/s and 100 turns/s^2.
+static const uint32_t MAX_RATE_STEPS_PER_S = 16000UL;
+static const uint32_t MAX_ACCEL_STEPS_PER_S2 = 320000UL;
+
+// Heater: equivalent DC voltage limit and the MOSFET's supply voltage
+// (PWM duty = (V / V_supply)^2).
+static const uint16_t MAX_HEATER_MV = 12000;
+static const uint16_t HEATER_SUPPLY_MV = 24000;
+
+// Command queue and host watchdog.
+static const uint8_t QUEUE_SLOTS = 16;
+static const uint16_t WATCHDOG_MS = 2000;
+// A half frame is dropped when the next byte takes longer than this.
+static const uint32_t FRAME_TIMEOUT_US = 20000UL;
+// Sampling period bounds (0 = off).
+static const uint32_t MIN_SAMPLE_PERIOD_US = 1000UL;
+
+// ADS1115 at I2C 0x48, single-ended AIN0, PGA +-6.144 V (config bits PGA = 000),
+// 860 samples/s (DR = 111): 187.5 uV/count, conversion ~1.2 ms.
+static const uint8_t ADS1115_ADDRESS = 0x48;
+static const uint8_t ADS1115_PGA_BITS = 0x0;
+static const uint8_t ADS1115_DR_BITS = 0x7;
+
+// AD8276 50 mA current source: settling time after enable before a CS5513 conversion.
+static const uint32_t RESISTANCE_SETTLE_US = 2000UL;
+// A CS5513 conversion that has not finished after this long is a fault.
+static const uint32_t RESISTANCE_TIMEOUT_US = 200000UL;
+
+}  // namespace cfg
