@@ -1,0 +1,76 @@
+#include "avr_board.h"
+
+#include <avr/interrupt.h>
+
+#include "../config.h"
+#include "../drivers/a4988.h"
+#include "../drivers/current_source.h"
+#include "../drivers/heater.h"
+#include "../drivers/reset_cause.h"
+#include "../hal/clock.h"
+#include "../hal/gpio.h"
+#include "../hal/step_timer.h"
+#include "../hal/system.h"
+#include "../hal/twi.h"
+#include "../hal/uart.h"
+
+namespace board {
+
+static_assert(fw::STEP_TICK_HZ * 8UL == F_CPU, "Timer1 runs at F_CPU / 8");
+
+AvrBoard::AvrBoard() : position_adc_(cfg::ADS1115_ADDRESS) {}
+
+void AvrBoard::init() {
+    cli();
+    // Power stages off first: at reset every pin floats until here (external pull-ups
+    // on /ENABLE and pull-downs on the heater gate and source enable cover that time).
+    drv::a4988::init();
+    drv::heater::init();
+    drv::current_source::init();
+    hal::gpio_output(hal::PIN_LED, false);
+    resistance_adc_.init();
+    hal::clock_init();
+    hal::uart_init();
+    hal::twi_init();
+    hal::step_init();
+    sei();
+    hal::gpio_write(hal::PIN_LED, true);
+}
+
+void AvrBoard::start_watchdog() { hal::watchdog_enable(); }
+
+uint64_t AvrBoard::now_us() { return hal::micros(); }
+
+int16_t AvrBoard::serial_read() { return hal::uart_read(); }
+uint16_t AvrBoard::serial_tx_free() { return hal::uart_tx_free(); }
+uint16_t AvrBoard::serial_write(const uint8_t* data, uint16_t n) { return hal::uart_write(data, n); }
+
+void AvrBoard::motor_enable(bool on) { drv::a4988::enable(on); }
+uint8_t AvrBoard::step_space() { return hal::step_space(); }
+void AvrBoard::step_push(int8_t direction, uint32_t interval_ticks) { hal::step_push(direction, interval_ticks); }
+bool AvrBoard::step_busy() { return hal::step_busy(); }
+int32_t AvrBoard::step_position() { return hal::step_position(); }
+void AvrBoard::step_set_position(int32_t steps) { hal::step_set_position(steps); }
+void AvrBoard::step_halt() { hal::step_halt(); }
+
+void AvrBoard::heater_set_mV(uint16_t mV) { drv::heater::set_mV(mV); }
+bool AvrBoard::sense_current(bool on) { return drv::current_source::set(on); }
+
+bool AvrBoard::position_start() { return position_adc_.start(); }
+int8_t AvrBoard::position_poll(int16_t& counts) { return position_adc_.poll(counts); }
+
+// Refused without the sense current: the conversion would measure nothing (the core
+// should never ask; this keeps a core bug from reporting a bogus resistance).
+bool AvrBoard::resistance_start() {
+    if (!drv::current_source::on()) return false;
+    resistance_adc_.start(cfg::RESISTANCE_TIMEOUT_US,
+                          drv::current_source::enabled_at_us() + drv::Cs5513::FILTER_SETTLE_US);
+    return true;
+}
+int8_t AvrBoard::resistance_poll(int32_t& counts, uint8_t& flags) { return resistance_adc_.poll(counts, flags); }
+
+uint8_t AvrBoard::boot_reason() { return drv::boot_reason_from_mcusr(hal::reset_flags()); }
+
+void AvrBoard::kick_hw_watchdog() { hal::watchdog_kick(); }
+
+}  // namespace board

@@ -1,0 +1,259 @@
+// Device, part 1: boot, the poll loop, frame dispatch, validation (see device.h).
+#include "device.h"
+
+#include "config.h"
+
+namespace fw {
+
+namespace {
+// Outbox room needed before a host frame is read: its ACK plus the most events one
+// command causes (SEGMENT_STARTED, SEGMENT_DONE, QUEUE_EMPTY), plus a reserve for a
+// FAULT raised in the same poll.
+const uint8_t RX_ROOM = 6;
+}  // namespace
+
+Device::Device(Board& board)
+    : board_(board), writer_(board), sim_load_(0), sim_ctx_(0), has_last_(false), last_seq_(0),
+      last_id_(0), duplicates_(0), last_host_us_(0), exec_(EXEC_NONE), starting_(false),
+      segment_(NO_SEGMENT), projected_(0), move_target_(0), move_dir_(0), seg_t_us_(0), dwell_us_(0),
+      heater_mV_(0), fault_(0), period_us_(0), next_sample_us_(0), counter_(0), samples_missed_(0),
+      sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true), resistance_started_(false),
+      sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0) {
+    last_ack_ = proto::Ack();
+    sample_ = proto::Sample();
+}
+
+void Device::set_sim_load_handler(SimLoadHandler fn, void* ctx) {
+    sim_load_ = fn;
+    sim_ctx_ = ctx;
+}
+
+void Device::boot() {
+    board_.heater_set_mV(0);
+    board_.sense_current(false);
+    board_.step_halt();
+    board_.step_set_position(0);
+    board_.motor_enable(true);  // holding torque keeps the strings' twist under load
+    last_host_us_ = board_.now_us();
+    proto::Boot m;
+    m.fw_major = cfg::FW_MAJOR;
+    m.fw_minor = cfg::FW_MINOR;
+    m.fw_patch = cfg::FW_PATCH;
+    m.reason = board_.boot_reason();
+    uint8_t p[proto::Boot::SIZE];
+    writer_.send(proto::Boot::ID, p, proto::pack(m, p));
+}
+
+void Device::poll() {
+    board_.kick_hw_watchdog();
+    feed_steps();
+    read_serial(board_.now_us());
+    uint64_t now = board_.now_us();
+    run_executor(now);
+    check_safety(now);
+    feed_steps();
+    run_sampler(now);
+    writer_.flush();
+}
+
+void Device::read_serial(uint64_t now) {
+    for (uint8_t n = 0; n < RX_BUDGET; ++n) {
+        if (writer_.outbox_free() < RX_ROOM) return;
+        int16_t c = board_.serial_read();
+        if (c < 0) return;
+        if (parser_.feed(static_cast<uint8_t>(c), now)) {
+            last_host_us_ = now;
+            handle_frame(now);
+        }
+    }
+}
+
+void Device::handle_frame(uint64_t now) {
+    const uint8_t id = parser_.msg_id();
+    const uint16_t seq = parser_.seq();
+    const uint8_t* p = parser_.payload();
+    const bool known = id < 0x80 && proto::payload_size(id) >= 0 &&
+                       (id != proto::SimSetLoad::ID || sim_load_ != 0);
+    if (!known) {
+        send_ack(writer_.reserve(), seq, id, proto::status::UNKNOWN_MESSAGE);
+        return;
+    }
+    if (parser_.payload_len() != proto::payload_size(id)) {
+        send_ack(writer_.reserve(), seq, id, proto::status::BAD_LENGTH);
+        return;
+    }
+    if (id == proto::Hello::ID) {
+        proto::Hello h;
+        proto::unpack(p, h);
+        if (h.protocol_version != proto::PROTOCOL_VERSION || h.catalogue_hash != proto::CATALOGUE_HASH) {
+            // Not an accepted command: the duplicate filter is left alone.
+            proto::Ack a;
+            a.acked_seq = seq;
+            a.acked_id = id;
+            a.status = proto::status::BAD_ARGUMENT;
+            a.queue_free = queue_.free();
+            uint8_t buf[proto::Ack::SIZE];
+            writer_.send(proto::Ack::ID, buf, proto::pack(a, buf));
+            return;
+        }
+        handle_hello();
+        return;
+    }
+    if (has_last_ && last_seq_ == seq && last_id_ == id) {
+        ++duplicates_;
+        uint8_t buf[proto::Ack::SIZE];
+        writer_.send(proto::Ack::ID, buf, proto::pack(last_ack_, buf));
+        if (id == proto::Heartbeat::ID) send_queue_status(now);
+        return;
+    }
+    uint8_t status = check(id, p);
+    uint8_t slot = writer_.reserve();  // the ACK precedes the events apply() sends
+    if (status == proto::status::OK) apply(id, p, now);
+    send_ack(slot, seq, id, status);
+}
+
+void Device::handle_hello() {
+    has_last_ = false;
+    proto::Identity m;
+    m.protocol_version = proto::PROTOCOL_VERSION;
+    m.fw_major = cfg::FW_MAJOR;
+    m.fw_minor = cfg::FW_MINOR;
+    m.fw_patch = cfg::FW_PATCH;
+    m.catalogue_hash = proto::CATALOGUE_HASH;
+    m.steps_per_turn = cfg::STEPS_PER_TURN;
+    m.min_twist_steps = cfg::MIN_TWIST_STEPS;
+    m.max_twist_steps = cfg::MAX_TWIST_STEPS;
+    m.max_rate_steps_per_s = cfg::MAX_RATE_STEPS_PER_S;
+    m.max_accel_steps_per_s2 = cfg::MAX_ACCEL_STEPS_PER_S2;
+    m.max_heater_mV = cfg::MAX_HEATER_MV;
+    m.queue_slots = cfg::QUEUE_SLOTS;
+    m.watchdog_ms = cfg::WATCHDOG_MS;
+    m.flags = sim_load_ ? proto::device_flags::SIMULATED : 0;
+    uint8_t buf[proto::Identity::SIZE];
+    writer_.send(proto::Identity::ID, buf, proto::pack(m, buf));
+}
+
+// Same order as the simulated device: BAD_STATE, BAD_ARGUMENT, LIMIT_EXCEEDED, QUEUE_FULL.
+uint8_t Device::check(uint8_t id, const uint8_t* p) const {
+    if (!proto::is_queued(id)) return proto::status::OK;
+    if (fault_) return proto::status::BAD_STATE;
+    if (id == proto::MoveTo::ID || id == proto::MoveBy::ID) {
+        proto::MoveTo m;  // MOVE_BY has the same layout (delta in target_steps)
+        proto::unpack(p, m);
+        if (m.rate_steps_per_s == 0 || m.accel_steps_per_s2 == 0) return proto::status::BAD_ARGUMENT;
+        if (m.rate_steps_per_s > cfg::MAX_RATE_STEPS_PER_S || m.accel_steps_per_s2 > cfg::MAX_ACCEL_STEPS_PER_S2)
+            return proto::status::LIMIT_EXCEEDED;
+        int64_t target = m.target_steps;
+        if (id == proto::MoveBy::ID) target += projected_;
+        if (target < cfg::MIN_TWIST_STEPS || target > cfg::MAX_TWIST_STEPS) return proto::status::LIMIT_EXCEEDED;
+    } else if (id == proto::SetHeater::ID) {
+        proto::SetHeater m;
+        proto::unpack(p, m);
+        if (m.voltage_mV > cfg::MAX_HEATER_MV) return proto::status::LIMIT_EXCEEDED;
+    } else if (id == proto::SetSampling::ID) {
+        proto::SetSampling m;
+        proto::unpack(p, m);
+        if (m.period_us > 0 && m.period_us < cfg::MIN_SAMPLE_PERIOD_US) return proto::status::BAD_ARGUMENT;
+    }
+    if (queue_.free() == 0) return proto::status::QUEUE_FULL;
+    return proto::status::OK;
+}
+
+void Device::apply(uint8_t id, const uint8_t* p, uint64_t now) {
+    switch (id) {
+    case proto::Heartbeat::ID:
+        send_queue_status(now);
+        return;
+    case proto::Stop::ID:
+        halt();
+        send_event(now, proto::event_kind::STOPPED, 0);
+        return;
+    case proto::ClearQueue::ID:
+        clear_queue();
+        if (fault_) {
+            uint8_t code = fault_;
+            fault_ = 0;
+            send_event(now, proto::event_kind::FAULT_CLEARED, code);
+        }
+        return;
+    case proto::SimSetLoad::ID: {
+        proto::SimSetLoad m;
+        proto::unpack(p, m);
+        if (sim_load_) sim_load_(sim_ctx_, m.load_mg);
+        return;
+    }
+    default:
+        break;
+    }
+    QueuedCommand c;
+    c.msg_id = id;
+    c.steps = 0;
+    c.value = 0;
+    c.accel = 0;
+    if (id == proto::MoveTo::ID || id == proto::MoveBy::ID) {
+        proto::MoveTo m;
+        proto::unpack(p, m);
+        c.segment = m.segment;
+        c.steps = m.target_steps;
+        c.value = m.rate_steps_per_s;
+        c.accel = m.accel_steps_per_s2;
+    } else if (id == proto::Dwell::ID) {
+        proto::Dwell m;
+        proto::unpack(p, m);
+        c.segment = m.segment;
+        c.value = m.duration_us;
+    } else if (id == proto::SetHeater::ID) {
+        proto::SetHeater m;
+        proto::unpack(p, m);
+        c.segment = m.segment;
+        c.value = m.voltage_mV;
+    } else {
+        proto::SetSampling m;
+        proto::unpack(p, m);
+        c.segment = m.segment;
+        c.value = m.period_us;
+    }
+    push(c, now);
+}
+
+void Device::send_ack(uint8_t slot, uint16_t seq, uint8_t id, uint8_t status) {
+    proto::Ack a;
+    a.acked_seq = seq;
+    a.acked_id = id;
+    a.status = status;
+    a.queue_free = queue_.free();
+    uint8_t buf[proto::Ack::SIZE];
+    writer_.fill(slot, proto::Ack::ID, buf, proto::pack(a, buf));
+    writer_.flush();
+    // A refused command had no effect, so its repetition is simply evaluated again.
+    has_last_ = status == proto::status::OK;
+    if (has_last_) {
+        last_seq_ = seq;
+        last_id_ = id;
+        last_ack_ = a;
+    }
+}
+
+void Device::send_queue_status(uint64_t now) {
+    proto::QueueStatus m;
+    m.t_us = now;
+    m.queue_free = queue_.free();
+    m.executing = exec_ != EXEC_NONE ? 1 : 0;
+    m.segment = segment_;
+    m.fault = fault_;
+    uint8_t buf[proto::QueueStatus::SIZE];
+    writer_.send(proto::QueueStatus::ID, buf, proto::pack(m, buf));
+}
+
+void Device::send_event(uint64_t t_us, uint8_t kind, uint16_t code) {
+    proto::Event m;
+    m.t_us = t_us;
+    m.kind = kind;
+    m.segment = segment_;
+    m.code = code;
+    m.value = board_.step_position();
+    uint8_t buf[proto::Event::SIZE];
+    writer_.send(proto::Event::ID, buf, proto::pack(m, buf));
+}
+
+}  // namespace fw

@@ -1,0 +1,139 @@
+// Device: the bench firmware's protocol dispatcher, segment executor, sampler and
+// safety logic, on top of a Board. Behaves as host/tsa_bench/sim/device.py (the
+// protocol's executable specification) except where real hardware differs: the end of
+// a move is stamped when the core sees the last step done (poll granularity), not at
+// the closed-form end; a SAMPLE leaves when its conversions finish (stamped with its
+// grid time), and grid slots that pass while a conversion is still running are skipped
+// with their counter values (a visible gap); SIM_SET_LOAD is an unknown message unless
+// set_sim_load_handler() was called; sensor failures only flag the sample.
+//
+// Contract. boot() once, then poll() forever from the main loop; poll() never blocks
+// (it reads at most RX_BUDGET bytes, pushes step intervals while the board's step ring
+// has room, advances the executor, the watchdog and the sampler state machine, flushes
+// output) and kicks the hardware watchdog. Everything here runs in the main loop:
+// nothing in the core is shared with an interrupt; multi-byte state the step and
+// serial ISRs touch lives behind the Board, which reads it atomically.
+// Backpressure instead of loss: host bytes are left in the RX ring while the outbox
+// lacks room for a command's replies, and the executor waits for room before starting
+// a segment, so ACKs and EVENTs are never dropped. Only SAMPLEs can be dropped.
+#pragma once
+#include <stdint.h>
+
+#include "board.h"
+#include "cmd_queue.h"
+#include "frame.h"
+#include "planner.h"
+#include "protocol_catalogue.h"
+#include "writer.h"
+
+namespace fw {
+
+static const uint16_t NO_SEGMENT = 0xFFFF;
+
+typedef void (*SimLoadHandler)(void* ctx, uint32_t load_mg);
+
+class Device {
+public:
+    static const uint8_t RX_BUDGET = 64;
+
+    explicit Device(Board& board);
+    void boot();
+    void poll();
+    // Simulated benches only: IDENTITY gets the SIMULATED flag and SIM_SET_LOAD is
+    // accepted and handed to fn; without a handler SIM_SET_LOAD is an unknown message.
+    void set_sim_load_handler(SimLoadHandler fn, void* ctx);
+
+    uint8_t fault() const { return fault_; }
+    bool executing() const { return exec_ != EXEC_NONE; }
+    bool active() const { return exec_ != EXEC_NONE || !queue_.empty() || heater_mV_ > 0; }
+    uint8_t queue_free() const { return queue_.free(); }
+    uint16_t heater_mV() const { return heater_mV_; }
+    uint16_t segment() const { return segment_; }
+    int32_t projected_steps() const { return projected_; }
+    uint32_t sampling_period_us() const { return period_us_; }
+    const FrameErrors& frame_errors() const { return parser_.errors(); }
+    uint32_t duplicates() const { return duplicates_; }
+    uint32_t samples_dropped() const { return writer_.dropped() + samples_missed_; }
+    uint32_t urgent_lost() const { return writer_.urgent_lost(); }
+
+private:
+    enum Exec { EXEC_NONE, EXEC_MOVE, EXEC_DWELL };
+    enum SamplerState { SAMPLER_IDLE, SAMPLER_BUSY };
+
+    // device.cpp: frames and commands
+    void read_serial(uint64_t now);
+    void handle_frame(uint64_t now);
+    void handle_hello();
+    uint8_t check(uint8_t id, const uint8_t* p) const;
+    void apply(uint8_t id, const uint8_t* p, uint64_t now);
+    void send_ack(uint8_t slot, uint16_t seq, uint8_t id, uint8_t status);
+    void send_queue_status(uint64_t now);
+    void send_event(uint64_t t_us, uint8_t kind, uint16_t code);
+
+    // device_exec.cpp: queue, segments, motion, safety
+    void push(const QueuedCommand& c, uint64_t now);
+    void run_executor(uint64_t now);
+    void start_segments();
+    bool begin(const QueuedCommand& c);
+    void finish_segment(uint64_t t_us);
+    void feed_steps();
+    void halt();
+    void clear_queue();
+    void trip(uint8_t code, uint64_t now);
+    void set_heater(uint16_t mV);
+    void check_safety(uint64_t now);
+
+    // device_sample.cpp: the sampling grid and the conversions
+    void set_sampling(uint32_t period_us, uint64_t t_us);
+    void run_sampler(uint64_t now);
+    void start_sample(uint64_t now);
+    void progress_sample(uint64_t now);
+    void finish_resistance(uint8_t extra_flags);
+    void abort_resistance();
+    void sense_off();
+
+    Board& board_;
+    FrameParser parser_;
+    FrameWriter writer_;
+    CommandQueue queue_;
+    StepPlanner planner_;
+    SimLoadHandler sim_load_;
+    void* sim_ctx_;
+
+    // duplicate filter: the last accepted command and its ACK
+    bool has_last_;
+    uint16_t last_seq_;
+    uint8_t last_id_;
+    proto::Ack last_ack_;
+    uint32_t duplicates_;
+    uint64_t last_host_us_;
+
+    // executor
+    Exec exec_;
+    bool starting_;         // idle with segments (or QUEUE_EMPTY) still to start/report
+    uint16_t segment_;
+    int32_t projected_;
+    int32_t move_target_;
+    int8_t move_dir_;
+    uint64_t seg_t_us_;     // when the current segment started (or the last one ended)
+    uint32_t dwell_us_;
+    uint16_t heater_mV_;
+    uint8_t fault_;
+
+    // sampler
+    uint32_t period_us_;
+    uint64_t next_sample_us_;
+    uint32_t counter_;
+    uint32_t samples_missed_;
+    SamplerState sampler_;
+    proto::Sample sample_;
+    bool position_done_;
+    bool resistance_done_;
+    bool resistance_started_;
+    bool sense_on_;
+    uint64_t sense_since_us_;
+    uint64_t sample_start_us_;
+    uint64_t conversion_us_;  // resistance conversion started at
+};
+
+}  // namespace fw

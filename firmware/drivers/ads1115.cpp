@@ -1,0 +1,72 @@
+#include "ads1115.h"
+
+#include "../config.h"
+#include "../hal/clock.h"
+#include "../hal/twi.h"
+
+namespace drv {
+
+namespace {
+const uint16_t CFG_OS_START = 1u << 15;
+const uint16_t CFG_MUX_AIN0_GND = 0x4u << 12;
+const uint8_t CFG_PGA_SHIFT = 9;
+const uint16_t CFG_MODE_SINGLE = 1u << 8;
+const uint8_t CFG_DR_SHIFT = 5;
+const uint16_t CFG_COMP_QUE_DISABLE = 0x3u;  // COMP_MODE/POL/LAT = 0 (defaults)
+// Samples per second for DR = 000 .. 111.
+const uint16_t SPS[8] = {8, 16, 32, 64, 128, 250, 475, 860};
+}  // namespace
+
+uint16_t Ads1115::config_word(uint8_t pga_bits, uint8_t dr_bits) {
+    return static_cast<uint16_t>(CFG_OS_START | CFG_MUX_AIN0_GND |
+                                 ((pga_bits & 0x7u) << CFG_PGA_SHIFT) | CFG_MODE_SINGLE |
+                                 ((dr_bits & 0x7u) << CFG_DR_SHIFT) | CFG_COMP_QUE_DISABLE);
+}
+
+uint32_t Ads1115::conversion_wait_us(uint8_t dr_bits) {
+    const uint32_t nominal = 1000000UL / SPS[dr_bits & 0x7u];
+    return nominal + nominal / 10 + 100;
+}
+
+Ads1115::Ads1115(uint8_t address7) : address_(address7), started_(false), started_at_us_(0) {}
+
+bool Ads1115::start() {
+    const uint16_t cfg = config_word(cfg::ADS1115_PGA_BITS, cfg::ADS1115_DR_BITS);
+    const uint8_t frame[3] = {REG_CONFIG, static_cast<uint8_t>(cfg >> 8), static_cast<uint8_t>(cfg & 0xFF)};
+    started_ = hal::twi_write(address_, frame, sizeof frame);
+    started_at_us_ = hal::micros();
+    return started_;
+}
+
+bool Ads1115::read_register(uint8_t reg, uint16_t& value) {
+    uint8_t rx[2];
+    if (!hal::twi_write(address_, &reg, 1)) return false;
+    if (!hal::twi_read(address_, rx, 2)) return false;
+    value = static_cast<uint16_t>((static_cast<uint16_t>(rx[0]) << 8) | rx[1]);
+    return true;
+}
+
+int8_t Ads1115::poll(int16_t& counts) {
+    if (!started_) return -1;
+    const uint64_t elapsed = hal::micros() - started_at_us_;
+    if (elapsed < conversion_wait_us(cfg::ADS1115_DR_BITS)) return 0;
+    uint16_t value;
+    if (!read_register(REG_CONFIG, value)) {
+        started_ = false;
+        return -1;
+    }
+    if (!(value & CFG_OS_START)) {  // OS reads 0 while converting
+        if (elapsed < CONVERSION_TIMEOUT_US) return 0;
+        started_ = false;
+        return -1;
+    }
+    if (!read_register(REG_CONVERSION, value)) {
+        started_ = false;
+        return -1;
+    }
+    started_ = false;
+    counts = static_cast<int16_t>(value);
+    return 1;
+}
+
+}  // namespace drv

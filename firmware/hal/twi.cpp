@@ -1,0 +1,90 @@
+#include "twi.h"
+
+#include <avr/io.h>
+
+#include "clock.h"
+
+namespace hal {
+
+namespace {
+const uint32_t TWI_HZ = 400000UL;
+
+// TWSR status codes (prescaler bits masked), ATmega2560 datasheet tables 24-2/24-3.
+const uint8_t ST_START = 0x08;
+const uint8_t ST_REP_START = 0x10;
+const uint8_t ST_SLA_W_ACK = 0x18;
+const uint8_t ST_DATA_W_ACK = 0x28;
+const uint8_t ST_SLA_R_ACK = 0x40;
+const uint8_t ST_DATA_R_ACK = 0x50;
+const uint8_t ST_DATA_R_NACK = 0x58;
+
+uint8_t status() { return TWSR & 0xF8; }
+
+// Wait for TWINT, bounded.
+bool wait_int() {
+    const uint64_t t0 = micros();
+    while (!(TWCR & (1 << TWINT))) {
+        if (micros() - t0 > TWI_TIMEOUT_US) return false;
+    }
+    return true;
+}
+
+bool command(uint8_t twcr_bits) {
+    TWCR = static_cast<uint8_t>((1 << TWINT) | (1 << TWEN) | twcr_bits);
+    return wait_int();
+}
+
+void stop() {
+    TWCR = (1 << TWINT) | (1 << TWEN) | (1 << TWSTO);
+    const uint64_t t0 = micros();
+    while (TWCR & (1 << TWSTO)) {
+        if (micros() - t0 > TWI_TIMEOUT_US) break;
+    }
+}
+
+bool fail() {
+    stop();
+    TWCR = 0;  // reset the TWI state machine, release SDA/SCL
+    TWCR = 1 << TWEN;
+    return false;
+}
+
+bool begin(uint8_t sla) {
+    if (!command(1 << TWSTA)) return false;
+    const uint8_t st = status();
+    if (st != ST_START && st != ST_REP_START) return false;
+    TWDR = sla;
+    return command(0);
+}
+}  // namespace
+
+void twi_init() {
+    TWSR = 0;                                             // prescaler 1
+    TWBR = static_cast<uint8_t>((F_CPU / TWI_HZ - 16) / 2);  // 12 -> 400 kHz
+    TWCR = 1 << TWEN;
+}
+
+bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n) {
+    if (!begin(static_cast<uint8_t>(address7 << 1)) || status() != ST_SLA_W_ACK) return fail();
+    for (uint8_t i = 0; i < n; ++i) {
+        TWDR = data[i];
+        if (!command(0) || status() != ST_DATA_W_ACK) return fail();
+    }
+    stop();
+    return true;
+}
+
+bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
+    if (n == 0) return true;
+    if (!begin(static_cast<uint8_t>((address7 << 1) | 1)) || status() != ST_SLA_R_ACK) return fail();
+    for (uint8_t i = 0; i < n; ++i) {
+        const bool last = i + 1 == n;
+        if (!command(last ? 0 : (1 << TWEA))) return fail();
+        if (status() != (last ? ST_DATA_R_NACK : ST_DATA_R_ACK)) return fail();
+        data[i] = TWDR;
+    }
+    stop();
+    return true;
+}
+
+}  // namespace hal

@@ -1,0 +1,162 @@
+#include "fake_board.h"
+
+#include <string.h>
+
+#include "config.h"
+
+namespace fw {
+
+FakeBoard::FakeBoard()
+    : step_ring_size(32), tx_ring_size(512), tx_drain_bytes_per_ms(0), reason(2), position_counts(1000),
+      position_start_fails(false), position_poll_fails(false), position_latency_us(0), resistance_counts(50000),
+      resistance_flags(0), resistance_start_fails(false), resistance_poll_fails(false), resistance_latency_us(0),
+      step_glitch(0), now(0), position(0), min_position(0), max_position(0), steps_executed(0),
+      min_interval_ticks(0xFFFFFFFFUL), heater_mV(0), sense_on(false), motor_enabled(false), kicks(0),
+      interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), rx_head_(0), rx_count_(0),
+      tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), position_busy_(false),
+      position_started_(0), resistance_busy_(false), resistance_started_(0), sense_since_(0) {}
+
+void FakeBoard::advance_us(uint64_t us) {
+    const uint64_t target = now + us;
+    const uint64_t target_tick = target * (STEP_TICK_HZ / 1000000UL);
+    while (step_count_ > 0) {
+        const Step& s = steps_[step_head_];
+        if (last_edge_tick_ + s.ticks > target_tick) break;
+        last_edge_tick_ += s.ticks;
+        position += s.dir + (s.dir > 0 ? step_glitch : -step_glitch);
+        ++steps_executed;
+        if (position < min_position) min_position = position;
+        if (position > max_position) max_position = position;
+        step_head_ = static_cast<uint8_t>((step_head_ + 1) % STEP_RING_MAX);
+        --step_count_;
+    }
+    if (tx_drain_bytes_per_ms) {
+        uint64_t drained = us * tx_drain_bytes_per_ms;  // milli-bytes
+        tx_pending_milli_ = drained >= tx_pending_milli_ ? 0 : tx_pending_milli_ - drained;
+    }
+    now = target;
+}
+
+uint16_t FakeBoard::host_write(const uint8_t* data, uint16_t n) {
+    uint16_t i = 0;
+    for (; i < n && rx_count_ < RX_CAP; ++i) {
+        rx_[(rx_head_ + rx_count_) % RX_CAP] = data[i];
+        ++rx_count_;
+    }
+    return i;
+}
+
+uint32_t FakeBoard::take_tx(uint8_t* out, uint32_t cap) {
+    uint32_t n = tx_len_ < cap ? tx_len_ : cap;
+    memcpy(out, tx_, n);
+    memmove(tx_, tx_ + n, tx_len_ - n);
+    tx_len_ -= n;
+    return n;
+}
+
+int16_t FakeBoard::serial_read() {
+    if (rx_count_ == 0) return -1;
+    uint8_t b = rx_[rx_head_];
+    rx_head_ = static_cast<uint16_t>((rx_head_ + 1) % RX_CAP);
+    --rx_count_;
+    return b;
+}
+
+uint16_t FakeBoard::serial_tx_free() {
+    uint64_t pending = (tx_pending_milli_ + 999) / 1000;
+    return pending >= tx_ring_size ? 0 : static_cast<uint16_t>(tx_ring_size - pending);
+}
+
+uint16_t FakeBoard::serial_write(const uint8_t* data, uint16_t n) {
+    uint16_t room = serial_tx_free();
+    if (n > room) n = room;
+    if (tx_drain_bytes_per_ms) tx_pending_milli_ += static_cast<uint64_t>(n) * 1000;
+    uint32_t keep = n;
+    if (tx_len_ + keep > TX_CAP) tx_len_ = 0;  // nobody read the capture: forget it
+    memcpy(tx_ + tx_len_, data, keep);
+    tx_len_ += keep;
+    return n;
+}
+
+uint8_t FakeBoard::step_space() {
+    uint8_t size = step_ring_size < 1 ? 1 : step_ring_size > STEP_RING_MAX ? STEP_RING_MAX : step_ring_size;
+    return step_count_ >= size ? 0 : static_cast<uint8_t>(size - step_count_);
+}
+
+void FakeBoard::step_push(int8_t direction, uint32_t interval_ticks) {
+    if (step_space() == 0) return;
+    if (step_count_ == 0) {
+        last_edge_tick_ = now * (STEP_TICK_HZ / 1000000UL);  // first step: from now
+    } else if (interval_ticks < min_interval_ticks) {
+        min_interval_ticks = interval_ticks;
+    }
+    Step& s = steps_[(step_head_ + step_count_) % STEP_RING_MAX];
+    s.dir = direction >= 0 ? 1 : -1;
+    s.ticks = interval_ticks;
+    ++step_count_;
+}
+
+void FakeBoard::step_halt() {
+    step_count_ = 0;
+    ++halts;
+}
+
+void FakeBoard::heater_set_mV(uint16_t mV) {
+    if (mV > 0 && sense_on) {
+        ++interlock_violations;
+        sense_on = false;  // the driver's own interlock
+    }
+    heater_mV = mV;
+}
+
+bool FakeBoard::sense_current(bool on) {
+    if (on && heater_mV > 0) {
+        ++sense_refusals;
+        return false;
+    }
+    if (on && !sense_on) sense_since_ = now;
+    sense_on = on;
+    return true;
+}
+
+bool FakeBoard::position_start() {
+    if (position_start_fails) return false;
+    position_busy_ = true;
+    position_started_ = now;
+    return true;
+}
+
+int8_t FakeBoard::position_poll(int16_t& counts) {
+    if (!position_busy_) return -1;
+    if (position_poll_fails) {
+        position_busy_ = false;
+        return -1;
+    }
+    if (now - position_started_ < position_latency_us) return 0;
+    position_busy_ = false;
+    counts = position_counts;
+    return 1;
+}
+
+bool FakeBoard::resistance_start() {
+    if (resistance_start_fails) return false;
+    if (!sense_on || now - sense_since_ < cfg::RESISTANCE_SETTLE_US) ++unsettled_conversions;
+    resistance_busy_ = true;
+    resistance_started_ = now;
+    return true;
+}
+
+int8_t FakeBoard::resistance_poll(int32_t& counts, uint8_t& flags) {
+    if (!resistance_busy_) return -1;
+    if (resistance_poll_fails) {
+        resistance_busy_ = false;
+        return -1;
+    }
+    if (now - resistance_started_ < resistance_latency_us) return 0;
+    resistance_busy_ = false;
+    counts = resistance_counts;
+    flags = resistance_flags;
+    return 1;
+}
+
+}  // namespace fw

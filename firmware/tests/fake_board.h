@@ -1,0 +1,106 @@
+// FakeBoard: a simulated Board for the native tests, the fuzz target and the native
+// stdio device. Contract: time moves only when advance_us() is called; queued steps
+// execute as that time passes (each at its interval after the previous edge, the first
+// of a burst after its push); the serial line is a byte FIFO in (host_write) and a
+// capture buffer out (take_tx), with an optional TX ring that drains at a given rate so
+// tests can fill it; sensors return scripted values after scripted latencies, or fail.
+// It also records what the core must never do (interlock violations, conversions
+// without a settled sense current) so tests can assert on them. Fixed buffers only.
+#pragma once
+#include <stdint.h>
+
+#include "board.h"
+
+namespace fw {
+
+class FakeBoard : public Board {
+public:
+    static const uint16_t RX_CAP = 4096;
+    static const uint32_t TX_CAP = 65536;
+    static const uint8_t STEP_RING_MAX = 64;
+
+    FakeBoard();
+
+    // --- test controls -----------------------------------------------------------
+    void advance_us(uint64_t us);
+    // Queues bytes as if the host had sent them; returns how many fitted.
+    uint16_t host_write(const uint8_t* data, uint16_t n);
+    uint16_t rx_pending() const { return rx_count_; }
+    // Moves captured device output into out (up to cap bytes); returns the count.
+    uint32_t take_tx(uint8_t* out, uint32_t cap);
+    uint32_t tx_captured() const { return tx_len_; }
+
+    // configuration (public fields: tests set them directly)
+    uint8_t step_ring_size;        // 1..STEP_RING_MAX
+    uint16_t tx_ring_size;         // serial_tx_free() when nothing is pending
+    uint32_t tx_drain_bytes_per_ms;  // 0 = drains instantly
+    uint8_t reason;
+    int16_t position_counts;
+    bool position_start_fails;
+    bool position_poll_fails;
+    uint32_t position_latency_us;
+    int32_t resistance_counts;
+    uint8_t resistance_flags;
+    bool resistance_start_fails;
+    bool resistance_poll_fails;
+    uint32_t resistance_latency_us;
+    int32_t step_glitch;           // added to every executed step (simulates a lost step)
+
+    // observations
+    uint64_t now;
+    int32_t position;
+    int32_t min_position;
+    int32_t max_position;
+    uint32_t steps_executed;
+    uint32_t min_interval_ticks;   // shortest interval pushed (excluding a burst's first)
+    uint16_t heater_mV;
+    bool sense_on;
+    bool motor_enabled;
+    uint32_t kicks;
+    uint32_t interlock_violations;   // heater switched on while sense current was on
+    uint32_t sense_refusals;         // sense_current(true) refused (heater on)
+    uint32_t unsettled_conversions;  // resistance started without a settled sense current
+    uint32_t halts;
+
+    // --- Board ---------------------------------------------------------------------
+    uint64_t now_us() override { return now; }
+    int16_t serial_read() override;
+    uint16_t serial_tx_free() override;
+    uint16_t serial_write(const uint8_t* data, uint16_t n) override;
+    void motor_enable(bool on) override { motor_enabled = on; }
+    uint8_t step_space() override;
+    void step_push(int8_t direction, uint32_t interval_ticks) override;
+    bool step_busy() override { return step_count_ > 0; }
+    int32_t step_position() override { return position; }
+    void step_set_position(int32_t steps) override { position = steps; }
+    void step_halt() override;
+    void heater_set_mV(uint16_t mV) override;
+    bool sense_current(bool on) override;
+    bool position_start() override;
+    int8_t position_poll(int16_t& counts) override;
+    bool resistance_start() override;
+    int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
+    uint8_t boot_reason() override { return reason; }
+    void kick_hw_watchdog() override { ++kicks; }
+
+private:
+    struct Step {
+        int8_t dir;
+        uint32_t ticks;
+    };
+    uint8_t rx_[RX_CAP];
+    uint16_t rx_head_, rx_count_;
+    uint8_t tx_[TX_CAP];
+    uint32_t tx_len_;
+    uint64_t tx_pending_milli_;  // bytes not yet drained, in 1/1000 byte
+    Step steps_[STEP_RING_MAX];
+    uint8_t step_head_, step_count_;
+    uint64_t last_edge_tick_;
+    bool position_busy_;
+    uint64_t position_started_;
+    bool resistance_busy_;
+    uint64_t resistance_started_;
+    uint64_t sense_since_;
+};
+
+}  // namespace fw

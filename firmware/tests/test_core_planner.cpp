@@ -1,0 +1,143 @@
+// Step planner: exact step counts, symmetry, peak rate and duration against the
+// closed-form trapezoid (host/tsa_bench/motion/trapezoid.py), over many combinations.
+#include <math.h>
+#include <stdio.h>
+
+#include "board.h"
+#include "planner.h"
+#include "test_runner.h"
+
+namespace {
+
+const uint32_t MAX_STEPS = 400000;
+uint32_t g_intervals[MAX_STEPS];
+
+struct Stats {
+    uint32_t count;
+    double total_s;
+    uint32_t min_ticks;
+    uint32_t max_asym_ticks;
+};
+
+Stats plan(uint32_t steps, uint32_t rate, uint32_t accel) {
+    fw::StepPlanner p;
+    p.begin(steps, rate, accel);
+    Stats s = {0, 0.0, 0xFFFFFFFFUL, 0};
+    uint64_t ticks = 0;
+    while (!p.finished() && s.count < MAX_STEPS) {
+        uint32_t iv = p.next_interval();
+        g_intervals[s.count++] = iv;
+        ticks += iv;
+        if (iv < s.min_ticks) s.min_ticks = iv;
+    }
+    for (uint32_t i = 0; i < s.count / 2; ++i) {
+        uint32_t a = g_intervals[i], b = g_intervals[s.count - 1 - i];
+        uint32_t d = a > b ? a - b : b - a;
+        if (d > s.max_asym_ticks) s.max_asym_ticks = d;
+    }
+    s.total_s = static_cast<double>(ticks) / fw::STEP_TICK_HZ;
+    return s;
+}
+
+// Closed-form trapezoid duration, as tsa_bench.motion.trapezoid.TrapezoidProfile.
+double closed_form_s(double d, double rate, double accel) {
+    if (d == 0) return 0;
+    double v = fmin(rate, sqrt(d * accel));
+    double ta = v / accel;
+    double tc = fmax(0.0, (d - v * v / accel) / v);
+    return 2 * ta + tc;
+}
+
+const uint32_t RATES[] = {1, 7, 100, 1000, 3200, 10667, 16000};
+const uint32_t ACCELS[] = {1, 13, 1000, 32000, 160000, 320000};
+const uint32_t DISTANCES[] = {1, 2, 3, 4, 5, 8, 9, 10, 17, 64, 100, 1000, 3200, 12345, 64000};
+
+}  // namespace
+
+TEST(core_planner_zero_steps) {
+    fw::StepPlanner p;
+    p.begin(0, 1000, 1000);
+    CHECK(p.finished());
+    CHECK_EQ(p.next_interval(), 0);
+}
+
+TEST(core_planner_exact_counts_symmetry_rate_duration) {
+    double worst_err = 0, worst_rate = 0;
+    uint32_t worst_asym = 0;
+    for (unsigned r = 0; r < sizeof RATES / sizeof RATES[0]; ++r) {
+        for (unsigned a = 0; a < sizeof ACCELS / sizeof ACCELS[0]; ++a) {
+            for (unsigned d = 0; d < sizeof DISTANCES / sizeof DISTANCES[0]; ++d) {
+                uint32_t steps = DISTANCES[d], rate = RATES[r], accel = ACCELS[a];
+                Stats s = plan(steps, rate, accel);
+                CHECK_EQ(s.count, steps);
+                double expect = closed_form_s(steps, rate, accel);
+                double err = fabs(s.total_s - expect) / expect;
+                // The brief asks for 2 %; the method gives < 0.1 %, checked at 0.5 %.
+                if (err > 0.005) testing::note("d=%u rate=%u accel=%u: %.6f s vs %.6f s", steps, rate, accel,
+                                              s.total_s, expect);
+                CHECK(err <= 0.005);
+                if (err > worst_err) worst_err = err;
+                double peak = fw::STEP_TICK_HZ / static_cast<double>(s.min_ticks);
+                if (peak / rate > worst_rate) worst_rate = peak / rate;
+                if (peak > rate * 1.01) testing::note("d=%u rate=%u accel=%u: peak %.1f", steps, rate, accel, peak);
+                CHECK(peak <= rate * 1.01);
+                if (s.max_asym_ticks > worst_asym) worst_asym = s.max_asym_ticks;
+                CHECK(s.max_asym_ticks <= 1);
+            }
+        }
+    }
+    printf("planner: worst duration error %.4f %%, worst peak/rate %.5f, worst asymmetry %u tick\n",
+           worst_err * 100, worst_rate, worst_asym);
+}
+
+TEST(core_planner_full_range_moves) {
+    // The longest possible move (MIN to MAX twist) at bench limits and at a crawl.
+    const uint32_t steps = 352000;
+    Stats s = plan(steps, 16000, 320000);
+    CHECK_EQ(s.count, steps);
+    CHECK(fabs(s.total_s - closed_form_s(steps, 16000, 320000)) / closed_form_s(steps, 16000, 320000) < 0.001);
+    CHECK_EQ(s.min_ticks, 125);
+    s = plan(steps, 16000, 1);  // triangular, 1186 s long
+    CHECK_EQ(s.count, steps);
+    CHECK(fabs(s.total_s - closed_form_s(steps, 16000, 1)) / closed_form_s(steps, 16000, 1) < 0.002);
+    CHECK(s.max_asym_ticks <= 1);
+}
+
+TEST(core_planner_single_step_is_exact_triangle) {
+    for (unsigned a = 0; a < sizeof ACCELS / sizeof ACCELS[0]; ++a) {
+        Stats s = plan(1, 16000, ACCELS[a]);
+        double expect = closed_form_s(1, 16000, ACCELS[a]);
+        CHECK_EQ(s.count, 1);
+        CHECK(fabs(s.total_s - expect) / expect < 0.005);
+    }
+}
+
+TEST(core_planner_short_moves_are_triangular) {
+    // 200 steps at 3200 steps/s^2 cannot reach 10000 steps/s (needs 15625 steps):
+    // speed rises to the middle and falls after it, never cruising.
+    Stats s = plan(200, 10000, 3200);
+    CHECK_EQ(s.count, 200);
+    for (uint32_t i = 1; i < 100; ++i) CHECK(g_intervals[i] <= g_intervals[i - 1]);
+    for (uint32_t i = 101; i < 200; ++i) CHECK(g_intervals[i] >= g_intervals[i - 1]);
+    CHECK(s.min_ticks > fw::STEP_TICK_HZ / 10000 + 1);
+    // A long move cruises at exactly the rate.
+    s = plan(20000, 3200, 32000);
+    CHECK_EQ(g_intervals[10000], fw::STEP_TICK_HZ / 3200);
+}
+
+TEST(core_planner_ramp_matches_constant_acceleration) {
+    // Step n of a ramp lands at t = sqrt(2 n / a): check the first 2000 steps.
+    const uint32_t accel = 1000;
+    plan(10000, 16000, accel);
+    uint64_t ticks = 0;
+    double worst = 0;
+    for (uint32_t n = 1; n <= 2000; ++n) {
+        ticks += g_intervals[n - 1];
+        double t = static_cast<double>(ticks) / fw::STEP_TICK_HZ;
+        double exact = sqrt(2.0 * n / accel);
+        double err = fabs(t - exact) / exact;
+        if (err > worst) worst = err;
+    }
+    CHECK(worst < 0.001);
+    printf("planner: worst ramp step-time error %.5f %% (a=%u, 2000 steps)\n", worst * 100, accel);
+}

@@ -1,0 +1,43 @@
+"""The firmware's compiled-in constants agree with the bench file that describes the rig."""
+
+from __future__ import annotations
+
+import re
+
+from tsa_bench.bench import load_bench
+from tsa_bench.protocol import msg
+
+CONST = re.compile(r"static const \w+ (\w+) = (-?\d+)U?L?;")
+
+
+def firmware_constants(repo_root) -> dict[str, int]:
+    text = (repo_root / "firmware" / "config.h").read_text()
+    return {name: int(value) for name, value in CONST.findall(text)}
+
+
+def test_config_h_matches_arduino_mega_yaml(repo_root):
+    c = firmware_constants(repo_root)
+    bench = load_bench(repo_root / "configs" / "bench" / "arduino-mega.yaml")
+    spt = bench.steps_per_turn
+    assert c["STEPS_PER_TURN"] == spt
+    assert c["MIN_TWIST_STEPS"] == round(bench.limits.min_twist_turns * spt)
+    assert c["MAX_TWIST_STEPS"] == round(bench.limits.max_twist_turns * spt)
+    assert c["MAX_RATE_STEPS_PER_S"] == round(bench.limits.max_rate_turns_per_s * spt)
+    assert c["MAX_ACCEL_STEPS_PER_S2"] == round(bench.limits.max_accel_turns_per_s2 * spt)
+    assert c["MAX_HEATER_MV"] == round(bench.limits.max_heater_voltage_V * 1000)
+    assert c["QUEUE_SLOTS"] == bench.queue_slots
+    assert c["WATCHDOG_MS"] == round(bench.watchdog_s * 1000)
+    assert c["BAUD"] == bench.baud
+
+
+def test_simulated_bench_reports_the_same_identity_as_the_firmware(repo_root):
+    """The default simulated bench stands in for the real one: same limits and geometry."""
+    from tsa_bench.sim.device import SimDevice
+
+    c = firmware_constants(repo_root)
+    ident = SimDevice(load_bench(None), seed=0).identity
+    assert isinstance(ident, msg.Identity)
+    assert (ident.steps_per_turn, ident.min_twist_steps, ident.max_twist_steps, ident.max_rate_steps_per_s,
+            ident.max_accel_steps_per_s2, ident.max_heater_mV, ident.queue_slots, ident.watchdog_ms) == (
+        c["STEPS_PER_TURN"], c["MIN_TWIST_STEPS"], c["MAX_TWIST_STEPS"], c["MAX_RATE_STEPS_PER_S"],
+        c["MAX_ACCEL_STEPS_PER_S2"], c["MAX_HEATER_MV"], c["QUEUE_SLOTS"], c["WATCHDOG_MS"])
