@@ -129,3 +129,37 @@ def test_device_fault_fails_the_run_and_keeps_the_data(tmp_path):
         assert len(f["samples/t"]) > 10
         segs = f["segments"][()]
     assert 0 < len(segs) < len(plan.segments) and segs["completed"][:-1].all()
+
+
+def test_a_failing_consumer_stops_the_device_and_the_file_still_closes(tmp_path):
+    """A consumer that raises (a full disk, a bug) ends the run as failed after STOP."""
+    from tsa_bench.device import BenchClient
+    from tsa_bench.runner import AutoOperator, Runner
+    from tsa_bench.runner.documents import SampleBlock
+    from tsa_bench.store import RunWriter
+    from tests.runner.helpers import BENCH
+
+    class Exploding:
+        def __init__(self):
+            self.blocks = 0
+
+        def on_start(self, start): pass
+        def on_segment(self, segment): pass
+        def on_event(self, event): pass
+        def on_stop(self, stop): raise RuntimeError("also broken at stop")
+
+        def on_samples(self, block: SampleBlock):
+            self.blocks += 1
+            if self.blocks == 3:
+                raise OSError("No space left on device")
+
+    plan = plan_from_text(SHORT.replace("- move_to: {turns: 0", "- heater: {voltage_V: 3}\n  - hold: {duration_s: 30}\n  - move_to: {turns: 0"))
+    port = open_sim()
+    client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
+    client.connect(BENCH.boot_timeout_s)
+    stop = Runner(client, plan, BENCH, [RunWriter(tmp_path / "r.h5"), Exploding()], AutoOperator(),
+                  backend="sim", port_name="sim://").run()
+    assert stop.exit_status == "failed" and "No space left" in stop.reason
+    assert port.device.executor.heater_mV == 0 and not port.device.active
+    with h5py.File(tmp_path / "r.h5") as f:
+        assert f.attrs["exit_status"] == "failed"

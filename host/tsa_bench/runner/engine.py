@@ -169,11 +169,21 @@ class Runner:
         except DeviceError as exc:
             status, reason = "failed", str(exc)
             self._safe_stop()
-        self._flush_rows()
-        self._close_open_segments()
+        except Exception as exc:  # a consumer or host bug: never leave the motor or heater running
+            status, reason = "failed", f"host error: {type(exc).__name__}: {exc}"
+            self._safe_stop()
+        try:
+            self._flush_rows()
+            self._close_open_segments()
+        except Exception as exc:
+            status, reason = "failed", f"{reason}; then host error: {type(exc).__name__}: {exc}"
         stop = RunStop(status, reason, self._t(self._now_us), self.samples, self.samples_lost,
                        self._segments_done, time.monotonic() - wall0)
-        self._emit("on_stop", stop)
+        for consumer in self.consumers:  # every consumer gets to close, even if another fails
+            try:
+                consumer.on_stop(stop)
+            except Exception:
+                pass
         return stop
 
     def _setup(self) -> None:
