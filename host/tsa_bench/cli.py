@@ -168,6 +168,33 @@ def info(run_file: str) -> None:
         sys.exit(EXIT_BAD_INPUT)
 
 
+@main.command()
+@click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
+              help="Also show which effects this simulated bench switches on and its values.")
+def effects(bench_path: str | None) -> None:
+    """List the simulated plant's physical effects with their parameters, units and defaults."""
+    from tsa_bench.sim.effects import describe_effects
+
+    configured: dict = {}
+    if bench_path is not None:
+        bench = _load_bench_or_exit(bench_path)
+        configured = bench.plant.get("effects", {}) or {}
+    for effect in describe_effects():
+        name = effect["name"]
+        cfg = configured.get(name, {}) if isinstance(configured, dict) else {}
+        state = ""
+        if bench_path is not None:
+            state = "  [off]" if cfg.get("enabled") is False else "  [on]"
+        click.echo(f"{name}  ({effect['stage']}){state}")
+        click.echo(f"    {effect['doc']}")
+        click.echo(f"    source: {effect['source']}")
+        for p in effect["params"]:
+            value = cfg.get(p["name"], p["default"])
+            shown = f"{value!r}" + ("" if value == p["default"] else f" (default {p['default']!r})")
+            click.echo(f"    {p['name']:<28} {shown:<24} {p['units']:<10} {p['doc']}")
+        click.echo("")
+
+
 @main.command("sim-serve")
 @click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
               help="Bench file (default: configs/bench/sim.yaml).")

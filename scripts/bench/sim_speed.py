@@ -3,7 +3,8 @@
 
 Prints, for the lifetime protocol (596 cycles, ~2.8 h of device time) run through
 plant + simulated device + codec + runner + HDF5 writer, the wall time and the
-real-time factor (target >= 500 on a 2-core machine), and the host codec's decode
+real-time factor (target >= 500 on a 2-core machine) with the shipped bench's plant
+effects (all on), the plant's own cost per sample, and the host codec's decode
 throughput in frames/s on a recorded-like stream of SAMPLE frames.
 
     python scripts/bench/sim_speed.py [--protocol configs/protocols/lifetime.yaml] [--repeat 1]
@@ -24,6 +25,8 @@ from tsa_bench.device import BenchClient
 from tsa_bench.plan import load_plan
 from tsa_bench.protocol import MessageDecoder, encode, msg
 from tsa_bench.runner import AutoOperator, Runner
+from tsa_bench.sim.effects import EFFECTS
+from tsa_bench.sim.plant import plant_from_config
 from tsa_bench.store import RunWriter
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -43,6 +46,15 @@ def run_once(protocol: Path, min_flush_interval_s: float = 0.05) -> tuple[float,
         wall = time.perf_counter() - t0
     assert stop.exit_status == "success", stop.reason
     return wall, stop.t_end, stop.samples, writer.flushes
+
+
+def plant_cost_us(n: int = 20_000) -> float:
+    """Microseconds per plant sample with the shipped bench's effects (all on)."""
+    plant = plant_from_config(load_bench(None).plant, seed=0)
+    t0 = time.perf_counter()
+    for i in range(n):
+        plant.sample(i * 0.1, 15 + (i // 20) % 10, 0.0, i % 20 < 6)
+    return (time.perf_counter() - t0) / n * 1e6
 
 
 def codec_throughput(n: int = 200_000) -> float:
@@ -72,6 +84,9 @@ def main() -> None:
             print(f"end to end  {args.protocol.name} [{label}]: {device_s / 3600:.2f} h of device time, "
                   f"{samples} samples, {flushes} file flushes in {wall:.2f} s wall -> real-time factor "
                   f"{device_s / wall:.0f} (target >= 500)")
+    enabled = [e.name for e in plant_from_config(load_bench(None).plant, seed=0).effects]
+    print(f"plant       {plant_cost_us():.1f} us/sample with {len(enabled)} of {len(EFFECTS)} effects on "
+          f"({', '.join(enabled)})")
     print(f"codec       decode throughput {codec_throughput():,.0f} frames/s (SAMPLE frames, 4 KiB chunks)")
 
 

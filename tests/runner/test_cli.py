@@ -169,3 +169,15 @@ def test_pty_bench_end_to_end(tmp_path):
             server.wait(10)
         except subprocess.TimeoutExpired:
             server.kill()
+
+
+def test_effects_lists_every_effect_with_units_and_bench_values():
+    from tsa_bench.sim.effects import EFFECTS
+
+    result = CliRunner().invoke(main, ["effects"])
+    assert result.exit_code == 0
+    for name in EFFECTS:
+        assert f"{name}  (" in result.output
+    assert "stiffness_N" in result.output and " N " in result.output
+    scheme1 = CliRunner().invoke(main, ["effects", "--bench", str(ROOT / "configs" / "bench" / "sim-scheme1.yaml")])
+    assert scheme1.exit_code == 0 and "(default 31.88)" in scheme1.output and "[on]" in scheme1.output

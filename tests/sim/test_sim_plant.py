@@ -1,4 +1,8 @@
-"""Plant physics: compliant TSA kinematics with radius growth, resistance, effects."""
+"""Plant physics: compliant TSA kinematics with radius growth, resistance, effects.
+
+Most tests use the shipped plant with only the quasi-static effects on
+(string_compliance, radius_growth, resistance_length); the dynamic effects have their
+own tests in test_sim_effects_*.py."""
 
 from __future__ import annotations
 
@@ -10,16 +14,27 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tsa_bench.bench import load_bench
-from tsa_bench.sim import PlantReading, SensorNoise, TsaGeometry, TsaPlant, contracted_length_mm, plant_from_config
+from tsa_bench.sim import EFFECTS, SensorNoise, TsaGeometry, TsaPlant, contracted_length_mm, plant_from_config
+from tsa_bench.sim.effects import Effect
 from tsa_bench.sim.kinematics import NEWTON_PER_GRAM
+
+QUASI_STATIC = ("string_compliance", "radius_growth", "resistance_length")
+
+
+def only(*names: str, base=None) -> dict:
+    """The shipped plant config with only ``names`` enabled."""
+    cfg = dict(load_bench(None).plant if base is None else base)
+    effects = {n: dict(v) for n, v in cfg.get("effects", {}).items()}
+    for n in EFFECTS:
+        effects.setdefault(n, {})["enabled"] = n in names
+    cfg["effects"] = effects
+    return cfg
 
 
 @pytest.fixture
 def plant() -> TsaPlant:
-    """The shipped plant without noise (deterministic)."""
-    cfg = dict(load_bench(None).plant)
-    cfg.pop("effects", None)
-    return plant_from_config(cfg)
+    """The shipped plant, quasi-static effects only (deterministic)."""
+    return plant_from_config(only(*QUASI_STATIC))
 
 
 def length(plant: TsaPlant, turns: float, load_g: float) -> float:
@@ -36,7 +51,7 @@ def test_length_falls_as_twist_rises(plant):
 
 
 def test_compliance_longer_under_more_load(plant):
-    for turns in (0, 20, 40, 55, 81):
+    for turns in (0, 20, 40, 55, 81):  # noqa: B007
         assert length(plant, turns, 550) > length(plant, turns, 450) > length(plant, turns, 0)
     # untwisted: exactly L0 (1 + F/K)
     g = plant.geometry
@@ -51,7 +66,11 @@ def test_thesis_scheme1_magnitudes(plant):
         assert (length(plant, 20, load) - length(plant, 55, load)) / length(plant, 20, load) > 0.2
 
 
-def test_resistance_follows_length(plant):
+def test_resistance_follows_length():
+    """Without the contact term R is a monotonic function of length alone."""
+    cfg = only(*QUASI_STATIC)
+    cfg["effects"]["resistance_length"]["contact_ohm_per_turn"] = 0.0
+    plant = plant_from_config(cfg)
     pairs = []
     for load in (450, 550):
         plant.set_load(load)
@@ -95,22 +114,28 @@ def test_geometry_refuses_nonsense():
     with pytest.raises(ValueError, match="stiffness_N"):
         TsaGeometry(248.0, 0.5, 0.0)
     with pytest.raises(ValueError, match="load_g"):
-        TsaPlant(TsaGeometry(248.0, 0.5, 31.88), 5.0, 0.01).set_load(-1)
+        TsaPlant(248.0, 0.5, 5.0).set_load(-1)
 
 
 def test_config_errors_name_the_key():
     with pytest.raises(ValueError, match="radius_m"):
         plant_from_config({"radius_m": 1})
     with pytest.raises(ValueError, match="stiffness_N"):
-        plant_from_config({"stiffness_N": "stiff"})
-    with pytest.raises(ValueError, match="unknown effect 'thermal_magic'"):
-        plant_from_config({"effects": [{"name": "thermal_magic"}]})
+        plant_from_config({"effects": {"string_compliance": {"stiffness_N": "stiff"}}})
+    with pytest.raises(ValueError, match="thermal_magic"):
+        plant_from_config({"effects": {"thermal_magic": {}}})
     with pytest.raises(ValueError, match="lenght_noise_mm"):
-        plant_from_config({"effects": [{"name": "sensor_noise", "lenght_noise_mm": 1}]})
+        plant_from_config({"effects": {"sensor_noise": {"lenght_noise_mm": 1}}})
+    with pytest.raises(ValueError, match="lenght_noise_mm"):  # even when switched off
+        plant_from_config({"effects": {"sensor_noise": {"enabled": False, "lenght_noise_mm": 1}}})
+    with pytest.raises(ValueError, match="enabled"):
+        plant_from_config({"effects": {"sensor_noise": {"enabled": "yes"}}})
+    with pytest.raises(ValueError, match="mapping"):
+        plant_from_config({"effects": [{"name": "sensor_noise"}]})
 
 
 def test_noise_is_seeded_and_zero_mean():
-    cfg = load_bench(None).plant
+    cfg = only(*QUASI_STATIC, "sensor_noise")
     a, b, c = plant_from_config(cfg, seed=7), plant_from_config(cfg, seed=7), plant_from_config(cfg, seed=8)
     assert any(isinstance(e, SensorNoise) for e in a.effects)
     ra = [a.sample(i * 0.1, 20.0, 0.0, False) for i in range(2000)]
@@ -124,18 +149,37 @@ def test_noise_is_seeded_and_zero_mean():
     assert sd == pytest.approx(0.05, rel=0.15)
 
 
-def test_effects_run_in_order_with_inputs():
+def test_effects_run_in_canonical_order_with_inputs():
     seen = []
 
-    class Recorder:
-        def apply(self, inputs, reading):
-            seen.append(inputs)
-            return PlantReading(reading.length_mm + 1.0, reading.resistance_ohm)
+    class Late(Effect):
+        name, stage = "test_late", "resistance"
 
-    p = TsaPlant(TsaGeometry(248.0, 0.51, 31.88), 5.0, 0.015, load_g=300, effects=[Recorder(), Recorder()])
+        def apply(self, state):
+            seen.append(("late", state.t_s, state.turns_cmd, state.heater_voltage_V, state.motor_moving,
+                         state.load_g))
+            state.resistance_ohm += 1.0
+
+    class Early(Effect):
+        name, stage = "test_early", "geometry"
+
+        def apply(self, state):
+            seen.append(("early",))
+            state.string_length_mm += 1.0
+
+    base = TsaPlant(248.0, 0.51, 5.0, load_g=300)
+    EFFECTS["test_late"], EFFECTS["test_early"] = Late, Early  # temporarily registered
+    try:
+        p = TsaPlant(248.0, 0.51, 5.0, load_g=300, effects=[Late(), Early()])
+    finally:
+        del EFFECTS["test_late"], EFFECTS["test_early"]
     r = p.sample(1.5, 10.0, 6.0, True)
-    assert r.length_mm == pytest.approx(p.quasi_static(10.0).length_mm + 2.0)
-    assert seen[0] == (1.5, 10.0, 6.0, True, 300.0)
+    b = base.sample(1.5, 10.0, 6.0, True)
+    assert [e.name for e in p.effects] == ["test_early", "test_late"]
+    assert seen == [("early",), ("late", 1.5, 10.0, 6.0, True, 300.0)]
+    assert r.length_mm == pytest.approx(math.sqrt(249.0 ** 2 - (2 * math.pi * 10 * 0.51) ** 2))
+    assert b.length_mm == pytest.approx(math.sqrt(248.0 ** 2 - (2 * math.pi * 10 * 0.51) ** 2))
+    assert r.resistance_ohm == pytest.approx(6.0)
 
 
 def test_sample_is_fast(plant):

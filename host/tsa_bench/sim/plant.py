@@ -1,34 +1,47 @@
 """The simulated plant: what a pair of twisted SCP strings does under a hanging load.
 
 Units: time in s, twist in motor turns (signed), heater voltage in V, load in g,
-length in mm, resistance in ohm.
+length in mm, resistance in ohm, temperature in degC.
 
 Contract: a :class:`Plant` is told the hanging mass (``set_load``) and sampled with
 nondecreasing times; each sample returns the length and resistance the transducers
-see. :class:`TsaPlant` computes the quasi-static TSA length of
-:mod:`tsa_bench.sim.kinematics` (compliant strings, radius growth, clamped at full
-twist), a resistance that rises linearly with length, ``R = R0 + dR/dX (X - L0)``
-(never below zero), and then applies its named effects (:mod:`tsa_bench.sim.effects`)
-in order; the shipped bench adds only sensor noise. The heater and motor state are
-passed through to the effects (the quasi-static model ignores them). ``sample`` costs
-a few microseconds.
+see. :class:`TsaPlant` holds one :class:`~tsa_bench.sim.effects.PlantState` and a
+list of enabled effects (:mod:`tsa_bench.sim.effects`). Per sample it writes the
+inputs, runs the ``motor`` effects (actual twist), updates the motion bookkeeping
+(direction, time since the motor stopped, cumulative twist travel), runs the
+``thermal`` and ``geometry`` effects, computes the TSA length ``X`` from the string
+length ``L`` and the effective twist (:func:`~tsa_bench.sim.effects.tsa_length_mm`,
+thesis eqs. 4.4-4.5), then the ``length``, ``resistance`` and ``sensor`` effects.
+Before the effects, each sample starts from ``L = L0``, ``R = R0``, constant radius,
+the actual twist and ambient temperature, so a switched-off effect leaves no trace.
+Effects always run in canonical stage order, whatever the config order. The bench
+file's ``plant`` mapping is::
+
+    plant: {untwisted_length_mm, radius_mm, resistance_ohm, ambient_C, initial_load_g, seed,
+            effects: {<name>: {enabled: bool, <param>: value, ...}, ...}}
+
+Omitted effects and parameters take the defaults documented on each effect class
+(``tsa-bench effects``; configs/bench/sim.yaml lists them all). ``sample`` costs a few
+tens of microseconds with every effect on.
 """
 
 from __future__ import annotations
 
+import copy
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any, Protocol
 
-from tsa_bench.sim.effects import EFFECTS, PlantEffect, PlantInputs, check_keys, number_param
-from tsa_bench.sim.kinematics import TsaGeometry, contracted_length_mm
+from tsa_bench.sim.effects import (EFFECTS, Effect, PlantState, build_effect, canonical_order, check_keys,
+                                   number_param, parse_effect_config, tsa_length_mm)
+from tsa_bench.sim.kinematics import NEWTON_PER_GRAM, TsaGeometry
 from tsa_bench.sim.readings import PlantReading
 
-__all__ = ["Plant", "PlantReading", "PlantInputs", "TsaPlant", "plant_from_config", "PLANT_KEYS"]
+__all__ = ["Plant", "PlantReading", "TsaPlant", "plant_from_config", "PLANT_KEYS"]
 
 #: Keys accepted in a bench file's ``plant`` mapping.
-PLANT_KEYS = ("untwisted_length_mm", "radius_mm", "stiffness_N", "resistance_ohm", "resistance_per_mm_ohm",
-              "initial_load_g", "seed", "effects")
+PLANT_KEYS = ("untwisted_length_mm", "radius_mm", "resistance_ohm", "ambient_C", "initial_load_g", "seed",
+              "effects")
 
 
 class Plant(Protocol):
@@ -42,81 +55,173 @@ class Plant(Protocol):
 
 
 class TsaPlant:
-    """Quasi-static compliant TSA plus a chain of effects (see module docstring)."""
+    """The TSA kinematics plus a list of effects run in canonical order (module docstring)."""
 
-    def __init__(self, geometry: TsaGeometry, resistance_ohm: float, resistance_per_mm_ohm: float,
-                 load_g: float = 0.0, effects: Sequence[PlantEffect] = ()) -> None:
-        self.geometry = geometry
-        self.resistance_ohm = resistance_ohm
-        self.resistance_per_mm_ohm = resistance_per_mm_ohm
-        self.effects = tuple(effects)
-        self._c_per_turn2 = geometry.twist_coefficient_mm3_per_turn2
-        self._r_at_zero_mm = resistance_ohm - resistance_per_mm_ohm * geometry.untwisted_length_mm
+    def __init__(self, untwisted_length_mm: float = 248.0, radius_mm: float = 0.51, resistance_ohm: float = 5.0,
+                 ambient_C: float = 22.0, load_g: float = 0.0,
+                 effects: list[Effect] | tuple[Effect, ...] = ()) -> None:
+        if not untwisted_length_mm > 0:
+            raise ValueError(f"untwisted_length_mm must be > 0, got {untwisted_length_mm}")
+        if not radius_mm >= 0:
+            raise ValueError(f"radius_mm must be >= 0, got {radius_mm}")
+        order = canonical_order([e.name for e in effects])
+        by_name = {e.name: e for e in effects}
+        self.effects: tuple[Effect, ...] = tuple(by_name[n] for n in order)
+        stages = {}
+        for e in self.effects:
+            stages.setdefault(e.stage, []).append(e.apply)
+        self._motor = tuple(stages.get("motor", ()))
+        self._pre = tuple(stages.get("thermal", ())) + tuple(stages.get("geometry", ()))
+        self._post = tuple(stages.get("length", ())) + tuple(stages.get("resistance", ()))
+        self._sensor = tuple(stages.get("sensor", ()))
+        self.state = PlantState(untwisted_length_mm=untwisted_length_mm, radius_mm=radius_mm,
+                                resistance0_ohm=resistance_ohm, ambient_C=ambient_C,
+                                temperature_C=ambient_C, string_length_mm=untwisted_length_mm,
+                                kinematic_length_mm=untwisted_length_mm, length_mm=untwisted_length_mm,
+                                resistance_ohm=resistance_ohm)
+        self._t_prev: float | None = None
+        self._moving_prev = False
         self.load_g = 0.0
-        self._stretched_mm = geometry.untwisted_length_mm
         self.set_load(load_g)
+
+    # -- configuration views --------------------------------------------
+    def effect(self, name: str) -> Effect | None:
+        """The enabled effect called ``name``, or None."""
+        for e in self.effects:
+            if e.name == name:
+                return e
+        return None
+
+    @property
+    def geometry(self) -> TsaGeometry:
+        """L0, r0 and the compliance K (huge if string_compliance is off)."""
+        comp = self.effect("string_compliance")
+        k = comp.params.stiffness_N if comp is not None else 1e300
+        return TsaGeometry(self.state.untwisted_length_mm, self.state.radius_mm, k)
+
+    def reset(self) -> None:
+        """Back to power-up: effects forget their memory, time restarts (load kept)."""
+        for e in self.effects:
+            e.reset()
+        s = self.state
+        s.t_s = s.dt_s = s.travel_turns = s.contraction = 0.0
+        s.turns = s.turns_cmd = s.turns_eff = 0.0
+        s.t_since_stop_s = float("inf")
+        s.temperature_C = s.ambient_C
+        self._t_prev = None
+        self._moving_prev = False
 
     def set_load(self, load_g: float) -> None:
         if not load_g >= 0:
             raise ValueError(f"load_g must be >= 0, got {load_g}")
         self.load_g = float(load_g)
-        self._stretched_mm = self.geometry.stretched_length_mm(self.load_g)
+        self.state.load_g = self.load_g
+        self.state.load_N = self.load_g * NEWTON_PER_GRAM
+
+    def peek(self, turns: float, heater_voltage_V: float | None = None) -> PlantReading:
+        """The noise-free reading if the plant were at ``turns`` now (nothing changes).
+
+        Runs one sample on a copy of the plant at the last sample time (no time passes,
+        motor state unchanged), without the sensor stage.
+        """
+        clone = copy.deepcopy(self)
+        clone._sensor = ()
+        s = clone.state
+        volts = s.heater_voltage_V if heater_voltage_V is None else heater_voltage_V
+        return clone.sample(s.t_s if clone._t_prev is not None else 0.0, turns, volts, clone._moving_prev)
 
     def quasi_static(self, turns: float) -> PlantReading:
-        """Length and resistance without effects, at the current load."""
-        x = contracted_length_mm(self._stretched_mm, self._c_per_turn2 * turns * turns)
-        return PlantReading(x, max(0.0, self._r_at_zero_mm + self.resistance_per_mm_ohm * x))
+        """Steady noise-free reading at ``turns`` given the plant's present memory (see :meth:`peek`)."""
+        return self.peek(turns)
 
+    # -- the sample ------------------------------------------------------
     def sample(self, t_s: float, turns: float, heater_voltage_V: float, motor_moving: bool) -> PlantReading:
-        reading = self.quasi_static(turns)
-        if self.effects:
-            inputs = PlantInputs(t_s, turns, heater_voltage_V, motor_moving, self.load_g)
-            for effect in self.effects:
-                reading = effect.apply(inputs, reading)
-        return reading
-
-
-def _effects_from_config(items: Any, rng: random.Random) -> list[PlantEffect]:
-    if items is None:
-        return []
-    if not isinstance(items, list):
-        raise ValueError("plant: 'effects' must be a list of mappings, each with a 'name'")
-    effects: list[PlantEffect] = []
-    for i, item in enumerate(items):
-        if not isinstance(item, Mapping) or not isinstance(item.get("name"), str):
-            raise ValueError(f"plant.effects[{i}]: must be a mapping with a 'name' key, got {item!r}")
-        factory = EFFECTS.get(item["name"])
-        if factory is None:
-            raise ValueError(f"plant.effects[{i}]: unknown effect '{item['name']}' "
-                             f"(known: {', '.join(sorted(EFFECTS))})")
-        params = {k: v for k, v in item.items() if k != "name"}
-        effects.append(factory(params, random.Random(rng.getrandbits(64))))
-    return effects
+        s = self.state
+        t_prev = self._t_prev
+        s.dt_s = dt = 0.0 if t_prev is None or t_s < t_prev else t_s - t_prev
+        self._t_prev = t_s
+        s.t_s = t_s
+        s.turns_cmd = turns
+        s.heater_voltage_V = heater_voltage_V
+        s.motor_moving = motor_moving = bool(motor_moving)
+        prev_turns = s.turns
+        s.turns = turns
+        for apply in self._motor:
+            apply(s)
+        # motion bookkeeping, on the actual twist
+        actual = s.turns
+        d = abs(actual) - abs(prev_turns)
+        s.direction = 1 if d > 0.0 else -1 if d < 0.0 else 0
+        s.travel_turns += abs(actual - prev_turns) if t_prev is not None else abs(actual)
+        if motor_moving:
+            s.t_since_stop_s = 0.0
+        elif self._moving_prev:
+            s.t_since_stop_s = 0.0
+        else:
+            s.t_since_stop_s += dt
+        self._moving_prev = motor_moving
+        # fresh per-sample quantities, then thermal + geometry
+        s.turns_eff = actual
+        s.string_length_mm = s.untwisted_length_mm
+        s.radius_growth = False
+        s.stiffness_factor = 1.0
+        s.hysteresis_scale = 1.0
+        if self._pre:
+            for apply in self._pre:
+                apply(s)
+        # kinematics
+        big_l = s.string_length_mm
+        x = tsa_length_mm(big_l, s.turns_eff, s.radius_mm, s.untwisted_length_mm, s.radius_growth)
+        s.kinematic_length_mm = s.length_mm = x
+        s.contraction = (big_l - x) / x if x > 0.0 else 0.0
+        s.resistance_ohm = s.resistance0_ohm
+        for apply in self._post:
+            apply(s)
+        if s.resistance_ohm < 0.0:
+            s.resistance_ohm = 0.0
+        length, resistance = s.length_mm, s.resistance_ohm
+        if self._sensor:
+            for apply in self._sensor:
+                apply(s)
+            length, resistance = s.length_mm, s.resistance_ohm
+        return PlantReading(length, resistance)
 
 
 def plant_from_config(plant_cfg: Mapping[str, Any], seed: int | None = None) -> TsaPlant:
     """Build the plant from a bench file's ``plant`` mapping; raise ValueError naming a bad key.
 
     ``seed`` overrides ``plant_cfg['seed']``; with neither, noise is not reproducible.
-    Missing keys take the shipped simulated bench's values (see configs/bench/sim.yaml).
+    Missing keys and effects take their documented defaults (every effect on).
     """
     where = "plant"
     check_keys(plant_cfg, PLANT_KEYS, where)
-    geometry = TsaGeometry(
-        untwisted_length_mm=number_param(plant_cfg, "untwisted_length_mm", where, 248.0, minimum=1e-9),
-        radius_mm=number_param(plant_cfg, "radius_mm", where, 0.51, minimum=0.0),
-        stiffness_N=number_param(plant_cfg, "stiffness_N", where, 31.88, minimum=1e-9),
-    )
     if seed is None:
         cfg_seed = plant_cfg.get("seed")
         if cfg_seed is not None and (isinstance(cfg_seed, bool) or not isinstance(cfg_seed, int)):
             raise ValueError(f"{where}: 'seed' must be an integer or null, got {cfg_seed!r}")
         seed = cfg_seed
+    items = plant_cfg.get("effects")
+    if items is None:
+        items = {}
+    if not isinstance(items, Mapping):
+        raise ValueError("plant: 'effects' must be a mapping {effect name: {enabled: bool, parameter: value}}")
+    unknown = sorted(set(items) - set(EFFECTS))
+    if unknown:
+        raise ValueError(f"plant.effects: unknown effect(s) {unknown} (known: {', '.join(canonical_order())})")
+    for name, cfg in items.items():
+        parse_effect_config(name, cfg)  # validate everything, even switched-off effects
     rng = random.Random(seed)
+    effects = []
+    for name in canonical_order():
+        sub = random.Random(rng.getrandbits(64))
+        e = build_effect(name, items.get(name), sub)
+        if e is not None:
+            effects.append(e)
     return TsaPlant(
-        geometry,
+        untwisted_length_mm=number_param(plant_cfg, "untwisted_length_mm", where, 248.0, minimum=1e-9),
+        radius_mm=number_param(plant_cfg, "radius_mm", where, 0.51, minimum=0.0),
         resistance_ohm=number_param(plant_cfg, "resistance_ohm", where, 5.0, minimum=0.0),
-        resistance_per_mm_ohm=number_param(plant_cfg, "resistance_per_mm_ohm", where, 0.015),
+        ambient_C=number_param(plant_cfg, "ambient_C", where, 22.0),
         load_g=number_param(plant_cfg, "initial_load_g", where, 0.0, minimum=0.0),
-        effects=_effects_from_config(plant_cfg.get("effects"), rng),
+        effects=effects,
     )
