@@ -140,6 +140,17 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
             click.echo("aborted before the run started; nothing was run", err=True)
             sys.exit(EXIT_ABORTED)
         path = Path(out_file) if out_file else _out_path(out_dir, plan.name)
+        if path.exists():  # never overwrite recorded data
+            click.echo(f"error: {path} already exists; choose another --output; nothing was run", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(path, "ab"):
+                pass
+            path.unlink()
+        except OSError as exc:
+            click.echo(f"error: cannot write the run file {path}: {exc}; nothing was run", err=True)
+            sys.exit(EXIT_BAD_INPUT)
         writer = RunWriter(path)
         operator = AutoOperator() if ident.flags & 1 else ConsoleOperator()
         runner = Runner(client, plan, bench, [writer, ProgressDisplay()], operator, backend=backend, port_name=url)

@@ -181,3 +181,31 @@ def test_effects_lists_every_effect_with_units_and_bench_values():
     assert "stiffness_N" in result.output and " N " in result.output
     scheme1 = CliRunner().invoke(main, ["effects", "--bench", str(ROOT / "configs" / "bench" / "sim-scheme1.yaml")])
     assert scheme1.exit_code == 0 and "(default 31.88)" in scheme1.output and "[on]" in scheme1.output
+
+
+def test_unwritable_output_is_refused_before_anything_runs(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    result = CliRunner().invoke(main, ["run", str(PROTOCOLS / "lifetime.yaml"), "--out", str(blocker / "sub")])
+    assert result.exit_code == 2 and "cannot write the run file" in result.output and "nothing was run" in result.output
+
+
+def test_info_reads_a_killed_run(tmp_path):
+    proc, out = _start_run(tmp_path, "400")
+    try:
+        _wait_for_samples(out, 50)
+        proc.kill()
+        proc.wait(10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    result = CliRunner().invoke(main, ["info", str(out)])
+    assert result.exit_code == 0 and "exit status  running" in result.output
+
+
+def test_an_existing_run_file_is_never_overwritten(tmp_path):
+    existing = tmp_path / "precious.h5"
+    existing.write_bytes(b"recorded data")
+    result = CliRunner().invoke(main, ["run", str(PROTOCOLS / "lifetime.yaml"), "--output", str(existing)])
+    assert result.exit_code == 2 and "already exists" in result.output
+    assert existing.read_bytes() == b"recorded data"

@@ -163,3 +163,16 @@ def test_a_failing_consumer_stops_the_device_and_the_file_still_closes(tmp_path)
     assert port.device.executor.heater_mV == 0 and not port.device.active
     with h5py.File(tmp_path / "r.h5") as f:
         assert f.attrs["exit_status"] == "failed"
+
+
+def test_segment_indices_unwrap_past_the_16_bit_wire_field():
+    """Plan indices travel modulo 65535 (0xFFFF = no segment); the host restores them
+    from the window of segments in flight, including across the wrap."""
+    from tsa_bench.runner.engine import NO_SEGMENT, WIRE_SEGMENTS, Runner
+
+    runner = Runner.__new__(Runner)
+    for oldest in (0, 5, 65_530, 65_534, 65_535, 131_060, 200_000):
+        runner._oldest = oldest
+        for idx in range(oldest, oldest + 16):
+            assert runner._unwrap(idx % WIRE_SEGMENTS) == idx
+    assert runner._unwrap(NO_SEGMENT) == -1

@@ -147,14 +147,15 @@ class Runner:
         plan = self.plan
         summary = plan.summary()
         ident = self.ident
-        self._emit("on_start", RunStart(
+        start = RunStart(
             plan_name=plan.name, protocol_text=plan.source_text, protocol_path=plan.path,
             bench_text=self.bench.source_text, bench_path=self.bench.path, backend=self.backend,
             port=self.port_name, firmware=f"{ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}",
             identity=ident._asdict(), n_segments=len(plan.segments),
-            estimated_duration_s=summary.duration_s, metadata=dict(plan.metadata)))
+            estimated_duration_s=summary.duration_s, metadata=dict(plan.metadata))
         status, reason = "success", "all segments done"
         try:
+            self._emit("on_start", start)
             self._setup()
             while self._oldest < len(plan.segments):
                 self._feed()
