@@ -19,7 +19,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from tsa_bench.bench import BenchConfig
-from tsa_bench.device import BenchClient, CommandRefused, DeviceError
+from tsa_bench.device import BenchClient, DeviceError
 from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling
 from tsa_bench.protocol import msg
 from tsa_bench.runner.documents import (
