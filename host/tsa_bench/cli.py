@@ -229,5 +229,9 @@ def sim_serve(bench_path: str | None, speed: float | None, seed: int | None) -> 
         pass
 
 
+from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the command is large)
+
+main.add_command(diagnose)
+
 if __name__ == "__main__":
     main()

@@ -1,0 +1,36 @@
+"""Judge the simulated plant against measured runs (issue 5, ``tsa-bench diagnose``).
+
+Units: time in s, length in mm, resistance in ohm, load in g inside (N in files).
+
+Contract: :func:`diagnose` calibrates the model's enabled effects on the training part
+of the runs, replays the recorded inputs, tests the residuals, ranks the library
+effects the model leaves off (and generic signals), names the effect(s) whose inclusion
+gives a significant held-out improvement and reports the gain; :func:`load_model`
+reads the ``plant`` mapping of a bench YAML (None: configs/bench/sim-baseline.yaml).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from tsa_bench.analysis.result import Candidate, DiagnoseResult, Gain
+
+CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
+BASELINE = CONFIG_DIR / "sim-baseline.yaml"
+
+
+def load_model(path: str | Path | None) -> dict[str, Any]:
+    """Plant config mapping of a bench YAML (validated); None -> the thesis-level baseline."""
+    from tsa_bench.bench import load_bench
+    from tsa_bench.sim.plant import plant_from_config
+
+    bench = load_bench(BASELINE if path is None else path)
+    plant = dict(bench.plant)
+    plant_from_config(plant, seed=0)  # validate: raises ValueError naming a bad key
+    return plant
+
+
+from tsa_bench.analysis.diagnose import diagnose  # noqa: E402
+
+__all__ = ["Candidate", "Gain", "DiagnoseResult", "diagnose", "load_model"]
