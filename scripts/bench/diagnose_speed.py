@@ -93,6 +93,12 @@ def simulate_run(plant: Mapping, protocol: str | Path, out_path: str | Path, see
     return out_path
 
 
+def verdict(effect: str | None, causes: list[str]) -> str:
+    if effect is None:
+        return "FALSE ALARM" if causes else "OK (clean)"
+    return "OK" if effect in causes else "MISSED"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--effect", default=None, help="hidden effect (default: first of %s off in the model)"
@@ -101,6 +107,8 @@ def main() -> None:
     ap.add_argument("--model", default=None, help="judged model (default: the engine's baseline)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--keep", type=Path, default=None, help="keep the run file and report in this directory")
+    ap.add_argument("--clean", action="store_true",
+                    help="hide nothing: the judged model's own effects only (a named cause is a false alarm)")
     args = ap.parse_args()
     try:
         from tsa_bench.analysis import diagnose, load_model
@@ -110,13 +118,14 @@ def main() -> None:
 
     model = load_model(args.model)
     off = effects_off(model)
-    effect = args.effect or next((e for e in PREFERRED if e in off), None)
-    if effect is None or effect not in off:
+    effect = None if args.clean else args.effect or next((e for e in PREFERRED if e in off), None)
+    if not args.clean and (effect is None or effect not in off):
         sys.exit(f"diagnose_speed: effect {effect!r} is not off in the judged model (off: {off})")
     with tempfile.TemporaryDirectory() as tmp:
         where = args.keep or Path(tmp)
         t0 = time.perf_counter()
-        path = simulate_run(with_hidden_effect(model, effect), args.protocol, where / "hidden.h5", args.seed)
+        truth = plant_of(model) if args.clean else with_hidden_effect(model, effect)
+        path = simulate_run(truth, args.protocol, where / "hidden.h5", args.seed)
         t_sim = time.perf_counter() - t0
         t0 = time.perf_counter()
         runs = [read_run(path)]
@@ -130,10 +139,10 @@ def main() -> None:
         write_json(result, where / "report" / "diagnose.json")
         t_rep = time.perf_counter() - t0
     n = len(runs[0])
-    print(f"data        {args.protocol.name}: {n} samples, hidden effect {effect} "
+    print(f"data        {args.protocol.name}: {n} samples, hidden effect {effect or 'none (clean)'} "
           f"(simulated in {t_sim:.1f} s, read in {t_read:.2f} s)")
     print(f"diagnose    {t_diag:.1f} s (target < 60 s) -> named {result.causes or 'nothing'}"
-          f" [{'OK' if effect in (result.causes or []) else 'MISSED'}]")
+          f" [{verdict(effect, result.causes or [])}]")
     print(f"report      {t_rep:.1f} s (report.txt + figures + JSON)")
     print(f"total       {t_diag + t_read + t_rep:.1f} s for read + diagnose + report")
 

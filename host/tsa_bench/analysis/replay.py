@@ -5,8 +5,11 @@ Units: as :mod:`tsa_bench.analysis.inputs`.
 Contract: :func:`replay` runs the plant with ``sensor_noise`` and ``quantisation``
 off on the run's samples ``idx`` (sorted; default all), from a fresh plant at the
 run's start. On a subsample ``motor_moving`` is the OR over the skipped samples, so
-no motor stop is lost. :func:`subsample` picks a few thousand indices keeping every
-heater and load change (and motor start/stop when affordable).
+no motor stop is lost, and a few samples before each kept sample whose twist or load
+changed are simulated too (not returned), so state lagging one sample replays at the
+true spacing. :func:`subsample` picks a few thousand indices keeping every heater and
+load change (and motor start/stop when affordable, else short windows after evenly
+spread stops), and for every kept still sample the stop that began its pause.
 """
 
 from __future__ import annotations
@@ -19,6 +22,9 @@ import numpy as np
 from tsa_bench.analysis.inputs import RunInputs
 from tsa_bench.analysis.modelspec import set_values
 from tsa_bench.sim.history import simulate
+
+#: samples simulated before a kept sample whose twist or load changed (see :func:`_with_context`)
+CONTEXT = 3
 
 
 def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
@@ -35,11 +41,32 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
         out = simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving, seed=0)
         return out["length_mm"], out["resistance_ohm"]
     idx = np.asarray(idx)
+    run_idx, pos = _with_context(inp, idx)
     c = np.cumsum(inp.moving.astype(np.int64))
-    prev = np.r_[-1, idx[:-1]]
-    moving = (c[idx] - np.where(prev >= 0, c[np.maximum(prev, 0)], 0)) > 0
-    out = simulate(cfg, inp.t[idx], inp.turns[idx], inp.volts[idx], inp.load_g[idx], moving, seed=0)
-    return out["length_mm"], out["resistance_ohm"]
+    prev = np.r_[-1, run_idx[:-1]]
+    moving = (c[run_idx] - np.where(prev >= 0, c[np.maximum(prev, 0)], 0)) > 0
+    out = simulate(cfg, inp.t[run_idx], inp.turns[run_idx], inp.volts[run_idx], inp.load_g[run_idx], moving, seed=0)
+    return out["length_mm"][pos], out["resistance_ohm"][pos]
+
+
+def _with_context(inp: RunInputs, idx: np.ndarray, n_context: int = CONTEXT) -> tuple[np.ndarray, np.ndarray]:
+    """Samples to simulate for outputs at ``idx`` (sorted), and where ``idx`` sits in them.
+
+    Some plant state lags one sample (load_dependence's stiffness uses the previous
+    sample's contraction), so where the twist or load changed since the previous kept
+    sample the ``n_context`` samples before are simulated too (not returned): that lag
+    then acts at the true sample spacing and its error decays before the kept sample.
+    """
+    if len(idx) < 2 or n_context <= 0:
+        return idx, np.arange(len(idx))
+    tw, ld = inp.turns[idx], inp.load_g[idx]
+    jump = np.flatnonzero((tw[1:] != tw[:-1]) | (ld[1:] != ld[:-1])) + 1
+    if len(jump) == 0:
+        return idx, np.arange(len(idx))
+    lo = np.maximum(idx[jump - 1] + 1, idx[jump] - n_context)
+    extra = np.concatenate([np.arange(a, b) for a, b in zip(lo, idx[jump]) if a < b] or [np.zeros(0, int)])
+    run_idx = np.unique(np.concatenate([idx, extra]))
+    return run_idx, np.searchsorted(run_idx, idx)
 
 
 def subsample(inp: RunInputs, stop: int, target: int) -> np.ndarray:
@@ -56,6 +83,8 @@ def subsample(inp: RunInputs, stop: int, target: int) -> np.ndarray:
     mv = np.flatnonzero(np.diff(inp.moving[:stop].astype(np.int8)) != 0)
     if 2 * len(mv) <= 2 * target:
         keep += [mv, mv + 1]
+    else:
+        keep.append(_post_stop_windows(inp, stop, target // 3))
     # every turning point of the twist: between kept samples the twist is then monotone,
     # so play operators (hysteresis) and cumulative travel (wear creep) replay exactly
     d = np.diff(inp.turns[:stop])
@@ -66,7 +95,35 @@ def subsample(inp: RunInputs, stop: int, target: int) -> np.ndarray:
     n_uniform = max(target - sum(len(k) for k in keep), target // 3)
     keep.append(np.linspace(0, stop - 1, n_uniform).astype(int))
     idx = np.unique(np.concatenate(keep))
-    return idx[(idx >= 0) & (idx < stop)]
+    idx = idx[(idx >= 0) & (idx < stop)]
+    # every kept still sample also keeps the stop that began its pause (and the last moving
+    # sample before it), so the replay's time since the stop is exact on the subsample
+    mv = inp.moving[:stop]
+    st = np.where(np.r_[False, mv[:-1] & ~mv[1:]], np.arange(stop), -1)
+    np.maximum.accumulate(st, out=st)
+    s0 = st[idx][~mv[idx] & (st[idx] > 0)]
+    if len(s0):
+        idx = np.unique(np.concatenate([idx, s0, s0 - 1]))
+    return idx
+
+
+def _post_stop_windows(inp: RunInputs, stop: int, budget: int, width: int = 12) -> np.ndarray:
+    """Too many motor stops to keep them all: whole short windows after evenly spread stops
+    (last moving sample, then up to ``width`` samples of the pause), ~``budget`` samples in
+    all, so the replay on the subsample sees those stops at their true time and the
+    post-stop structure (e.g. resistance transient decay) is sampled densely."""
+    mv = inp.moving[:stop]
+    stops = np.flatnonzero(mv[:-1] & ~mv[1:]) + 1          # first still sample after a move
+    if len(stops) == 0 or budget <= 0:
+        return np.zeros(0, int)
+    starts = np.flatnonzero(~mv[:-1] & mv[1:]) + 1
+    nxt = np.searchsorted(starts, stops)
+    end = np.where(nxt < len(starts), starts[np.minimum(nxt, len(starts) - 1)], stop)
+    w = np.minimum(end - stops, width)
+    n_win = max(1, min(len(stops), budget // max(1, int(np.median(w)) + 1)))
+    pick = np.unique(np.linspace(0, len(stops) - 1, n_win).astype(int))
+    parts = [np.arange(stops[i] - 1, stops[i] + w[i]) for i in pick]
+    return np.concatenate(parts) if parts else np.zeros(0, int)
 
 
 def noise_level(x: np.ndarray, mask: np.ndarray | None = None) -> float:
