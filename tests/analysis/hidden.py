@@ -184,15 +184,18 @@ def write_run(path: Path, hist: dict, length: np.ndarray, resistance: np.ndarray
     return path
 
 
-def generate(path: Path, effects: tuple[str, ...] = (), seed: int = 0, short: bool = False) -> dict:
+def generate(path: Path, effects: tuple[str, ...] = (), seed: int = 0, short: bool = False,
+             noise_seed: int | None = None) -> dict:
     """Simulate the protocol on baseline + ``effects`` (drawn params, noise on); write ``path``.
 
+    ``seed`` draws the actuator (the hidden effects' parameters); ``noise_seed``
+    (default ``seed + 1``) the sensor noise, so two runs of one actuator share ``seed``.
     Returns ``{"path", "drawn", "n"}``.
     """
     hist = history(protocol_steps(short))
     cfg, drawn = truth_config(tuple(effects), seed, hist)
     out = simulate(cfg, hist["t"], hist["turns"], hist["heater_voltage"], hist["load_g"],
-                   hist["motor_moving"].astype(bool), seed=seed + 1)
+                   hist["motor_moving"].astype(bool), seed=seed + 1 if noise_seed is None else noise_seed)
     res = out["resistance_ohm"].copy()
     res[hist["heater_voltage"] > 0] = np.nan          # not measured while heating
     write_run(path, hist, out["length_mm"], res)

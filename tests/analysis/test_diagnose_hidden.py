@@ -61,3 +61,15 @@ def test_false_alarm_rate_on_clean_data(tmp_path, model):
         if seed == 0:
             assert result.gain[0].relative == 0.0 and result.causes == []
     assert len(alarms) <= 1, alarms   # <= 5 % of 20
+
+
+def test_several_runs_hold_out_a_whole_run(tmp_path, model):
+    """With several runs of one actuator the held-out part is a whole run (`run:1`)."""
+    a = generate(tmp_path / "a.h5", ("length_creep",), seed=4, short=True)
+    b = generate(tmp_path / "b.h5", ("length_creep",), seed=4, short=True, noise_seed=77)  # same strings, new noise
+    runs = [read_run(a["path"]), read_run(b["path"])]
+    result = diagnose(runs, model, holdout="run:1")
+    assert result.cause == "length_creep", (result.causes, result.notes)
+    assert {g.output: g.relative for g in result.gain}["length"] >= 0.30
+    held = result.series["heldout"]
+    assert held.sum() == len(runs[1]) and not held[: len(runs[0])].any()
