@@ -6,9 +6,13 @@
 // waited for. The 50 mA sense current stays on between samples while sampling runs and
 // the heater is off (so only the first conversion after enabling it waits
 // cfg::RESISTANCE_SETTLE_US); it goes off before the heater comes on, aborting a
-// conversion in progress (the sample then says resistance_not_measured). A grid slot
-// that passes while the previous sample is still converting is skipped, its counter
-// value consumed, so the host sees the gap.
+// conversion in progress (the sample then says resistance_not_measured). The
+// resistance never holds up the grid: a word not ready RESISTANCE_MARGIN_US before the
+// next slot is given up (resistance_not_measured, sense current left on), so while the
+// CS5513's filter settles after the current comes on (~80 ms) or when the period is
+// shorter than its conversion time, samples still come on every slot with their
+// position. A grid slot that passes while the previous sample is still converting its
+// position is skipped, its counter value consumed, so the host sees the gap.
 #include "config.h"
 #include "device.h"
 
@@ -18,6 +22,8 @@ namespace {
 // An ADS1115 conversion at 860 SPS takes ~1.2 ms; far longer means the ADC is gone.
 const uint32_t POSITION_TIMEOUT_US = 20000UL;
 const uint8_t OF_OD = proto::adc_flags::RESISTANCE_OVERRANGE | proto::adc_flags::RESISTANCE_OSCILLATION;
+// Time left before the next grid slot at which a pending resistance word is given up.
+const uint32_t RESISTANCE_MARGIN_US = 500UL;
 }  // namespace
 
 void Device::set_sampling(uint32_t period_us, uint64_t t_us) {
@@ -102,6 +108,12 @@ void Device::progress_sample(uint64_t now) {
             } else if (r < 0 || now - conversion_us_ > cfg::RESISTANCE_TIMEOUT_US) {
                 finish_resistance(proto::adc_flags::RESISTANCE_NOT_MEASURED);
             }
+        }
+        if (!resistance_done_ && period_us_ != 0 && now + RESISTANCE_MARGIN_US >= next_sample_us_) {
+            // The next slot is due: keep the grid, keep the current on (still settling).
+            resistance_done_ = true;
+            sample_.resistance_raw = 0;
+            sample_.adc_flags |= proto::adc_flags::RESISTANCE_NOT_MEASURED;
         }
     }
     if (!position_done_ || !resistance_done_) return;

@@ -25,6 +25,9 @@ void Cs5513::init() {
 
 void Cs5513::start(uint32_t timeout_us, uint64_t valid_from_us) {
     hal::gpio_write(hal::PIN_RES_CS, false);
+    // A word already waiting finished less than one conversion ago (the part keeps only
+    // the latest). If that may have been before valid_from_us, clock it out unused.
+    if (!hal::gpio_read(hal::PIN_RES_SDO) && hal::micros() < valid_from_us + MAX_CONVERSION_US) (void)clock_word();
     armed_ = true;
     timeout_us_ = timeout_us;
     valid_from_us_ = valid_from_us;

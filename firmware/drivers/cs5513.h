@@ -8,7 +8,10 @@
 // is high). /CS stays low between conversions so the sinc4 filter keeps running (after
 // waking it needs four conversions to settle).
 //
-// start(timeout_us, valid_from_us) arms one measurement. Words that become ready
+// start(timeout_us, valid_from_us) arms one measurement. A word already waiting at
+// start() finished within the last conversion period (the part keeps only the latest):
+// it is used, unless start() comes less than one conversion after valid_from_us, when
+// it may predate the settling and is clocked out unused. Words that become ready
 // before valid_from_us are clocked out and discarded: a word is the sinc4 filter's
 // output over about four conversion periods, so after the sense current switches on
 // the first words still average the time it was off. The board passes

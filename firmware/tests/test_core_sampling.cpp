@@ -151,3 +151,30 @@ TEST(core_sampling_slow_conversion_skips_slots) {
     CHECK_EQ(h.count(proto::Sample::ID), 0);
     CHECK(!h.board.sense_on);
 }
+
+TEST(core_sampling_slow_resistance_keeps_the_grid) {
+    // A CS5513 word takes up to 19.1 ms (and ~80 ms after the current comes on): at a
+    // 10 ms period the sample gives up the resistance before the next slot instead of
+    // losing that slot, and the sense current stays on.
+    Harness h;
+    h.keepalive = true;
+    h.board.resistance_latency_us = 15000;
+    h.board.position_counts = 21345;
+    h.boot();
+    h.sampling(1, 10000);
+    h.clear();
+    h.run_us(200000);
+    int got = 0;
+    int64_t last = -1;
+    for (int i = 0; i < h.n; ++i) {
+        if (h.replies[i].id != proto::Sample::ID) continue;
+        ++got;
+        if (last >= 0) CHECK_EQ(h.replies[i].f[0], last + 1);  // no counter gap
+        last = h.replies[i].f[0];
+        CHECK_EQ(h.replies[i].f[5], af::RESISTANCE_NOT_MEASURED);
+        CHECK_EQ(h.replies[i].f[3], 21345);  // the position is there
+    }
+    CHECK(got >= 19);
+    CHECK(h.board.sense_on);
+    CHECK_EQ(h.dev.samples_dropped(), 0);
+}

@@ -155,3 +155,33 @@ TEST(drv_cs5513_filter_settle_covers_four_slowest_conversions) {
     CHECK_EQ(drv::Cs5513::MAX_CONVERSION_US, 19125);  // 612 clocks at 32 kHz
     CHECK_EQ(drv::Cs5513::FILTER_SETTLE_US, 76500);
 }
+
+TEST(drv_cs5513_discards_a_word_waiting_at_start) {
+    fake::reset();
+    drv::Cs5513 adc;
+    adc.init();
+    adc.start(200000, 0);
+    int32_t counts = 0;
+    uint8_t flags = 0;
+    fake::cs5513_load(0x000111);
+    CHECK_EQ(adc.poll(counts, flags), 1);
+    CHECK_EQ(counts, 0x111);
+    // Between measurements the converter keeps going. Soon after the current came on
+    // (valid_from 10 ms ago, less than a conversion) a waiting word may predate the
+    // settling: it must not be used.
+    fake::advance_us(50000);
+    fake::cs5513_load(0x000222);
+    adc.start(200000, 40000);
+    CHECK(!fake::cs5513_word_pending());
+    CHECK_EQ(adc.poll(counts, flags), 0);
+    fake::cs5513_load(0x000333);
+    CHECK_EQ(adc.poll(counts, flags), 1);
+    CHECK_EQ(counts, 0x333);
+    // Long settled, a waiting word (less than one conversion old) is the measurement.
+    fake::advance_us(100000);
+    fake::cs5513_load(0x000444);
+    adc.start(200000, 40000);
+    CHECK(fake::cs5513_word_pending());
+    CHECK_EQ(adc.poll(counts, flags), 1);
+    CHECK_EQ(counts, 0x444);
+}

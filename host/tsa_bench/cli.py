@@ -80,6 +80,36 @@ def _out_path(out_dir: str, plan_name: str) -> Path:
     return path
 
 
+def _start_simavr(bench: BenchConfig, speed: float | None, seed: int | None):
+    """Build and start the firmware-in-the-loop bench; exit with a clear error if it cannot."""
+    import dataclasses
+
+    from tsa_bench.simavr import SimavrBench, SimavrError, simavr_settings
+    try:
+        settings = simavr_settings(bench)
+        if speed:
+            settings = dataclasses.replace(settings, realtime_factor=speed)
+        return SimavrBench(bench, settings, seed=seed).__enter__()
+    except BenchConfigError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    except SimavrError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_FAILED)
+
+
+def _report_simavr(fil) -> None:
+    """One line from the harness summary; violations and crashes loudly."""
+    s = fil.summary
+    if not s:
+        click.echo(f"warning: the simavr harness left no summary (exit code {fil.returncode}): {fil.stderr_text}",
+                   err=True)
+        return
+    bad = {k: v for k, v in s["violations"].items() if v}
+    click.echo(f"simavr       {s['device_time_s']:.1f} s of device time, {s['steps']['total']} steps, "
+               f"violations: {bad or 'none'}" + (" - FIRMWARE CRASHED" if s["crashed"] else ""))
+
+
 def _raise_interrupt(signum, frame):  # SIGTERM ends a run like Ctrl-C: STOP, file closed "aborted"
     raise KeyboardInterrupt
 
@@ -93,7 +123,7 @@ def _raise_interrupt(signum, frame):  # SIGTERM ends a run like Ctrl-C: STOP, fi
 @click.option("--output", "out_file", type=click.Path(dir_okay=False), default=None,
               help="Exact run-file path (overrides --out).")
 @click.option("--speed", type=float, default=None,
-              help="Simulated bench only: real-time factor (1 = wall-clock pace); default as fast as possible.")
+              help="Simulated benches only: real-time factor (1 = wall-clock pace); default as fast as possible.")
 @click.option("--seed", type=int, default=None, help="Simulated bench only: noise seed.")
 def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
         speed: float | None, seed: int | None) -> None:
@@ -111,9 +141,14 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
     if speed is not None and speed <= 0:
         click.echo("error: --speed must be > 0 (a real-time factor)", err=True)
         sys.exit(EXIT_BAD_INPUT)
+    fil = None  # firmware in the loop (simavr)
     if port is None and bench.backend == "sim":
         url, backend = _sim_url(bench, speed, seed), "sim"
         click.echo(f"tsa-bench: running '{plan.name}' on the SIMULATED bench ({bench.name}); no hardware is used")
+    elif port is None and bench.backend == "simavr":
+        fil = _start_simavr(bench, speed, seed)
+        url, backend = fil.port_path, "simavr"
+        click.echo(f"tsa-bench: running '{plan.name}' on the firmware in simavr ({bench.name}); no hardware is used")
     else:
         url = port or bench.port
         if not url:
@@ -124,11 +159,15 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
     try:
         ser = serial.serial_for_url(url, baudrate=bench.baud, timeout=0.05, write_timeout=2.0)
     except (serial.SerialException, ValueError, OSError) as exc:
+        if fil is not None:
+            fil.close()
         click.echo(f"error: cannot open {url}: {exc}\n  check the device is plugged in, the port name "
                    "(`python -m serial.tools.list_ports`), and that no other program holds it", err=True)
         sys.exit(EXIT_FAILED)
     old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
+        if fil is not None:
+            fil.start()  # release the emulated AVR from reset, as the DTR line does on a Mega
         client = BenchClient(ser, ack_timeout_s=bench.ack_timeout_s)
         try:
             ident = client.connect(bench.boot_timeout_s, baud=bench.baud)
@@ -153,11 +192,18 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
             sys.exit(EXIT_BAD_INPUT)
         writer = RunWriter(path)
         operator = AutoOperator() if ident.flags & 1 else ConsoleOperator()
+        if fil is not None:
+            from tsa_bench.simavr.operator import PlantOperator
+            operator = PlantOperator(fil)
+            operator.apply_initial(plan.load_g)
         runner = Runner(client, plan, bench, [writer, ProgressDisplay()], operator, backend=backend, port_name=url)
         stop = runner.run()
     finally:
         signal.signal(signal.SIGTERM, old_term)
         ser.close()
+        if fil is not None:
+            fil.close()
+            _report_simavr(fil)
     click.echo(format_run_info(inspect_run(path)))
     rtf = stop.t_end / stop.wall_time_s if stop.wall_time_s > 0 else float("inf")
     click.echo(f"wall time    {stop.wall_time_s:.2f} s (real-time factor {rtf:.0f})")

@@ -5,7 +5,6 @@ same answers, and the host's runner drives a whole plan on the firmware."""
 from __future__ import annotations
 
 import subprocess
-import time
 
 import h5py
 import numpy as np
@@ -13,11 +12,11 @@ import pytest
 import serial
 
 import tsa_bench.transport  # noqa: F401  (registers sim://)
+from tests.conformance_scenarios import Exchange, every_command_and_refusal
 from tests.firmware.native_port import NativeFirmwarePort
 from tsa_bench.bench import load_bench
 from tsa_bench.device import BenchClient
 from tsa_bench.plan import load_plan_text
-from tsa_bench.protocol import MessageDecoder, encode, encode_raw, msg
 from tsa_bench.runner import AutoOperator, Runner
 from tsa_bench.store import RunWriter
 
@@ -31,78 +30,13 @@ def native_binary(repo_root):
     return repo_root / "firmware" / "build" / "tsa_bench_native"
 
 
-class Exchange:
-    """Sends host frames to a device port and collects its replies (no SAMPLEs)."""
-
-    def __init__(self, port, settle_s: float):
-        self.port, self.settle_s = port, settle_s
-        self.decoder = MessageDecoder()
-        self.seq = 100
-
-    def replies(self) -> list:
-        out, deadline = [], time.monotonic() + self.settle_s
-        while True:  # the simulated device answers at once; the firmware process within ms
-            data = self.port.read(self.port.in_waiting or 1) if self.settle_s else self.port.read(4096)
-            out += [f.message for f in self.decoder.feed(data)]
-            if time.monotonic() >= deadline:
-                break
-        return [normalise(m) for m in out if not isinstance(m, (msg.Sample, msg.Boot))]
-
-    def send(self, message=None, *, raw: bytes | None = None, seq: int | None = None) -> list:
-        if seq is None:
-            self.seq += 1
-            seq = self.seq
-        self.port.write(raw if raw is not None else encode(message, seq))
-        return self.replies()
-
-
-def normalise(m):
-    """What must agree between firmware and simulation (not times, sensors or versions)."""
-    if isinstance(m, msg.Ack):
-        return ("ACK", m.acked_id, msg.Status(m.status).name, m.queue_free)
-    if isinstance(m, msg.Identity):
-        return ("IDENTITY", m.protocol_version, m.catalogue_hash, m.steps_per_turn, m.min_twist_steps,
-                m.max_twist_steps, m.max_rate_steps_per_s, m.max_accel_steps_per_s2, m.max_heater_mV,
-                m.queue_slots, m.watchdog_ms)
-    if isinstance(m, msg.QueueStatus):
-        return ("QUEUE_STATUS", m.queue_free, m.executing, m.segment, m.fault)
-    if isinstance(m, msg.Event):
-        return ("EVENT", msg.EventKind(m.kind).name, m.segment, m.code)
-    return (type(m).__name__,)
-
-
-def scenario(ex: Exchange) -> list:
-    """A session touching every message and every refusal; returns all replies."""
-    log = []
-    log.append(ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH ^ 1)))
-    log.append(ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH)))
-    log.append(ex.send(msg.Heartbeat()))
-    log.append(ex.send(raw=encode_raw(0x7E, 5, b"\x01\x02")))                  # unknown id
-    log.append(ex.send(raw=encode_raw(0x10, 6, b"\x01\x02\x03")))  # bad length
-    log.append(ex.send(msg.MoveTo(1, 10_000_000, 1000, 1000)))                # beyond max twist
-    log.append(ex.send(msg.MoveTo(1, 1000, 0, 1000)))                         # zero rate
-    log.append(ex.send(msg.MoveTo(1, 1000, 10**6, 1000)))                     # rate beyond max
-    log.append(ex.send(msg.MoveBy(1, -10**6, 1000, 1000)))                    # projected below min
-    log.append(ex.send(msg.SetHeater(1, 60_000)))                            # heater beyond max
-    log.append(ex.send(msg.SetSampling(1, 500)))                              # period too short
-    log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # starts at once
-    log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # duplicate: same ACK again
-    for i in range(17):                                                        # fill the queue, then one more
-        log.append(ex.send(msg.Dwell(3 + i, 60_000_000)))
-    log.append(ex.send(msg.ClearQueue()))
-    log.append(ex.send(msg.Heartbeat()))
-    log.append(ex.send(msg.Stop()))
-    log.append(ex.send(msg.Heartbeat()))
-    return log
-
-
 def test_firmware_answers_like_the_simulated_device(native_binary):
     sim_port = serial.serial_for_url("sim://?seed=1", timeout=0)
-    sim_log = scenario(Exchange(sim_port, settle_s=0))
+    sim_log = every_command_and_refusal(Exchange(sim_port, settle_s=0))
     fw_port = NativeFirmwarePort(native_binary, "--speed", "1")
     try:
         fw_port.read(64)  # its BOOT
-        fw_log = scenario(Exchange(fw_port, settle_s=0.08))
+        fw_log = every_command_and_refusal(Exchange(fw_port, settle_s=0.08))
     finally:
         fw_port.close()
     assert len(fw_log) == len(sim_log)

@@ -3,7 +3,8 @@
 A bench file (``configs/bench/*.yaml``) describes one rig. Contract: every physical
 quantity carries its unit in its key; calibrations are linear maps from the device's
 raw counts to physical units, applied on the host (the device reports raw counts);
-``plant`` is read only by the simulated bench. Errors name the file and the key.
+``plant`` is read only by the simulated benches (``sim`` and ``simavr``), ``simavr``
+only by the firmware-in-the-loop bench (:mod:`tsa_bench.simavr`). Errors name the file and the key.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from tsa_bench.plan.limits import Limits
 
 #: Where the shipped bench files live when running from a source checkout.
 CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
-BACKENDS = ("sim", "serial")
+BACKENDS = ("sim", "serial", "simavr")
 
 
 class BenchConfigError(ValueError):
@@ -78,6 +79,7 @@ class BenchConfig:
     ack_timeout_s: float = 0.25
     boot_timeout_s: float = 3.0
     plant: dict[str, Any] = field(default_factory=dict)
+    simavr: dict[str, Any] = field(default_factory=dict)
     source_text: str = ""
     path: str | None = None
 
@@ -112,7 +114,7 @@ def parse_bench(text: str, filename: str = "<string>") -> BenchConfig:
     if not isinstance(data, dict):
         raise BenchConfigError(f"{filename}: a bench file is a mapping of keys")
     known = {"name", "backend", "port", "baud", "steps_per_turn", "limits", "watchdog_s", "queue_slots",
-             "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant"}
+             "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr"}
     for key in data:
         if key not in known:
             raise BenchConfigError(f"{filename}: unknown key '{key}' (allowed: {', '.join(sorted(known))})")
@@ -153,6 +155,7 @@ def parse_bench(text: str, filename: str = "<string>") -> BenchConfig:
         ack_timeout_s=_get(data, "ack_timeout_s", filename, float, 0.25),
         boot_timeout_s=_get(data, "boot_timeout_s", filename, float, 3.0),
         plant=_get(data, "plant", filename, dict, {}),
+        simavr=_get(data, "simavr", filename, dict, {}),
         source_text=text,
         path=filename,
     )

@@ -28,7 +28,11 @@ implements it:
   :attr:`SimDevice.active`, ``watchdog_ms`` of virtual time without a valid host frame
   halts like STOP and latches fault WATCHDOG (EVENT FAULT).
 * SAMPLE every sampling period on a grid anchored where SET_SAMPLING ran, first one
-  period later; sampling survives STOP and faults.
+  period later; sampling survives STOP and faults. The resistance is there only when
+  the CS5513 has a settled word in time (:class:`~tsa_bench.sim.sensors.ResistanceTiming`:
+  not while the heater is on, not in the ~80 ms after the sense current comes on unless
+  the period leaves time, not at periods shorter than a conversion); otherwise the
+  sample keeps its slot and says resistance_not_measured.
 * Every EVENT's ``value`` is the step position at that instant; ``code`` is the fault
   for FAULT and FAULT_CLEARED, else 0.
 * Undecodable frames are dropped and counted (:attr:`frame_errors`); a valid frame
@@ -48,7 +52,7 @@ from tsa_bench.protocol.framing import FrameDecoder, RawFrame, encode_raw
 from tsa_bench.sim.executor import NO_SEGMENT, QueuedCommand, SegmentExecutor
 from tsa_bench.sim.identity import SIM_FIRMWARE_VERSION, DeviceLimits, device_limits, identity_message
 from tsa_bench.sim.plant import Plant, plant_from_config
-from tsa_bench.sim.sensors import SimSensors
+from tsa_bench.sim.sensors import ResistanceTiming, SimSensors
 
 __all__ = ["SimDevice", "NO_SEGMENT", "MIN_SAMPLING_PERIOD_US"]
 
@@ -58,6 +62,7 @@ MIN_SAMPLING_PERIOD_US = 1000
 _S = msg.Status
 _SAMPLE_SPEC = msg.MESSAGES[0x83]
 _SAMPLE_PACK = _SAMPLE_SPEC.struct.pack
+_NOT_MEASURED = int(msg.AdcFlags.RESISTANCE_NOT_MEASURED)
 _QUEUED_TYPES = (msg.MoveTo, msg.MoveBy, msg.Dwell, msg.SetHeater, msg.SetSampling)
 
 
@@ -70,6 +75,8 @@ class SimDevice:
         self.identity = identity_message(self.limits)
         self.plant: Plant = plant if plant is not None else plant_from_config(bench.plant, seed)
         self.sensors = SimSensors(bench.position, bench.resistance)
+        self.resistance_timing = ResistanceTiming()
+        self._heater_seen = 0
         self.executor = SegmentExecutor(self.limits.queue_slots, self._emit_event, self._set_sampling)
         self.now_s = 0.0
         self.fault = 0
@@ -193,7 +200,13 @@ class SimDevice:
         reading = self.plant.sample(t, steps * self._turns_per_step, heater_mV * 1e-3, moving)
         position_raw, resistance_raw, flags = self.sensors.convert(
             reading.length_mm, reading.resistance_ohm, heater_mV)
+        timing = self.resistance_timing
+        if heater_mV > 0 or ex.heater_switch_ons != self._heater_seen:
+            timing.sense_off()       # the heater came on since the last sample: current off
+            self._heater_seen = ex.heater_switch_ons
         t_us = self._anchor_us + self._k * self._period_us
+        if heater_mV == 0 and not timing.measured(t_us * 1e-6, self._period_us * 1e-6):
+            resistance_raw, flags = 0, flags | _NOT_MEASURED
         payload = _SAMPLE_PACK(self._counter, t_us, steps, position_raw, resistance_raw, flags, heater_mV,
                                1 if moving else 0, ex.segment)
         self._out += encode_raw(0x83, self._seq, payload)
@@ -203,6 +216,8 @@ class SimDevice:
         self._next_sample_s = (t_us + self._period_us) * 1e-6
 
     def _set_sampling(self, period_us: int, t_s: float) -> None:
+        if period_us == 0:
+            self.resistance_timing.sense_off()
         self._period_us = period_us
         self._anchor_us = self._t_us(t_s)
         self._k = 1

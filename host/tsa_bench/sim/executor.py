@@ -56,6 +56,7 @@ class SegmentExecutor:
         self.position_steps = 0        # at rest, or where the running move started
         self.projected_steps = 0
         self.heater_mV = 0
+        self.heater_switch_ons = 0       # SET_HEATER > 0 executed so far (the sense current goes off)
         self.segment = NO_SEGMENT
         self.end_s = math.inf          # when the executing segment ends
         self._move: _Move | None = None
@@ -151,6 +152,8 @@ class SegmentExecutor:
                 return False
             self.end_s = t_s + command.duration_us * 1e-6
         elif kind is msg.SetHeater:
+            if command.voltage_mV > 0:
+                self.heater_switch_ons += 1
             self.heater_mV = command.voltage_mV
             return False
         elif kind is msg.SetSampling:

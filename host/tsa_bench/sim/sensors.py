@@ -14,6 +14,8 @@ Resistance -> ``round(R / ohm_per_count)`` in the converter's signed range
 
 from __future__ import annotations
 
+import math
+
 from tsa_bench.bench.config import PositionCalibration, ResistanceCalibration
 from tsa_bench.protocol.catalogue import AdcFlags
 
@@ -55,3 +57,68 @@ class SimSensors:
             return position_raw, 0, _NOT_MEASURED
         resistance_raw, flags = self.resistance_raw(resistance_ohm)
         return position_raw, resistance_raw, flags
+
+
+#: CS5513 conversion period (s): 612 clocks of its slowest (32 kHz) on-chip oscillator,
+#: the firmware's drivers/cs5513.h MAX_CONVERSION_US and the simavr harness default.
+CS5513_CONVERSION_S = 612 / 32000
+#: Words after the sense current comes on that still average the time it was off (sinc4).
+CS5513_SETTLE_S = 4 * CS5513_CONVERSION_S
+#: The firmware's analog settling wait before arming a conversion (config.h RESISTANCE_SETTLE_US).
+SENSE_SETTLE_S = 0.002
+#: A word not ready this long before the next grid slot is given up (device_sample.cpp).
+RESISTANCE_MARGIN_S = 0.0005
+
+
+class ResistanceTiming:
+    """When the firmware's sample gets a CS5513 word (times in s of device time).
+
+    Contract: mirrors firmware/core/device_sample.cpp and drivers/cs5513.*. The 50 mA
+    sense current comes on at the first sample with the heater off (:meth:`measured`)
+    and goes off with the heater (:meth:`sense_off`). Words finish every
+    ``CS5513_CONVERSION_S`` on a grid anchored where the current first came on (the
+    converter then runs for good); the part keeps only the latest word, and a word is
+    read once. A sample starting at ``t`` arms at ``max(t, on + SENSE_SETTLE_S)``: a
+    word waiting then is used if the current has been on ``CS5513_SETTLE_S`` plus one
+    conversion, else discarded; otherwise the first word finished after arming and no
+    earlier than ``on + CS5513_SETTLE_S`` is used if it is ready
+    ``RESISTANCE_MARGIN_S`` before the next slot. Else the sample says
+    resistance_not_measured and keeps its slot.
+    """
+
+    def __init__(self) -> None:
+        self._anchor_s: float | None = None
+        self._on_s: float | None = None
+        self._read_s = -math.inf          # finish time of the last word read out
+
+    def sense_off(self) -> None:
+        self._on_s = None
+
+    def _latest_word(self, t_s: float) -> float:
+        assert self._anchor_s is not None
+        k = math.floor((t_s - self._anchor_s) / CS5513_CONVERSION_S + 1e-9)
+        return self._anchor_s + k * CS5513_CONVERSION_S if k >= 1 else -math.inf
+
+    def measured(self, t_s: float, period_s: float) -> bool:
+        """Whether the sample starting at ``t_s`` (heater off) gets its resistance."""
+        if self._on_s is None:
+            self._on_s = t_s
+            if self._anchor_s is None:
+                self._anchor_s = t_s
+        if period_s <= 0:
+            return True
+        valid_s = self._on_s + CS5513_SETTLE_S
+        armed_s = max(t_s, self._on_s + SENSE_SETTLE_S)
+        deadline_s = t_s + period_s - RESISTANCE_MARGIN_S
+        waiting = self._latest_word(armed_s)
+        if waiting > self._read_s:
+            self._read_s = waiting
+            if armed_s >= valid_s + CS5513_CONVERSION_S - 1e-9:
+                return True
+        k = math.ceil((max(valid_s - 1e-9, armed_s + 1e-9) - self._anchor_s) / CS5513_CONVERSION_S)
+        word_s = self._anchor_s + k * CS5513_CONVERSION_S
+        if word_s <= deadline_s:
+            self._read_s = word_s
+            return True
+        self._read_s = max(self._read_s, min(self._latest_word(deadline_s), self._latest_word(valid_s - 1e-9)))
+        return False

@@ -1,0 +1,78 @@
+// tsa_simavr: the bench harness around the unmodified firmware ELF in simavr.
+//
+// Contract. One `struct harness` holds the simulated ATmega2560 and every emulated
+// part of the rig wired to it (hal/pins.h is the wiring). Each part is a module with
+// an *_attach() that registers its simavr IRQ hooks and a *_report() that writes its
+// figures into the JSON summary. Times are AVR cycles (16 MHz) unless a name says
+// otherwise. Plant values come from the host's Python plant over plant_link (one
+// source of plant truth); nothing here models the strings.
+#pragma once
+#include <stdint.h>
+#include <stdio.h>
+
+#include <sim_avr.h>
+
+#define HZ_CPU 16000000.0
+
+struct plant_link;
+
+// A4988 + heater + current source: what the power stages see.
+struct drive_state {
+    int32_t steps;                 // signed step count (DIR high = +1), enabled pulses only
+    uint64_t steps_total;          // every enabled rising edge
+    uint64_t steps_while_disabled; // rising edges with /ENABLE high (the motor ignores them)
+    uint64_t pulse_width_violations;   // STEP high or low < 1 us
+    uint64_t dir_setup_violations;     // DIR changed < 200 ns before a STEP rising edge
+    uint64_t dir_hold_violations;      // DIR changed < 200 ns after a STEP rising edge
+    uint64_t interlock_violations;     // heater gate driven while the sense current is on
+    uint64_t min_step_high_cycles, min_step_low_cycles;
+    uint64_t last_step_rise, last_step_fall, last_dir_change;
+    uint64_t last_step_cycle;      // for "moving"
+    int step_level, dir_level, enabled;
+    int interlock_active;
+    int sense_on;                  // AD8276 current source enable (PC3)
+    uint64_t sense_on_cycle;
+};
+
+struct harness {
+    avr_t *avr;
+    struct plant_link *plant;
+    struct drive_state drive;
+    double heater_supply_V;
+    uint64_t moving_window_cycles;  // a step within this window = motor moving
+    // figures gathered by the modules
+    uint64_t uart_rx_bytes, uart_tx_bytes, uart_rx_overruns, uart_rx_held_before_rxen;
+    uint64_t uart_tx_first_cycle, uart_tx_last_cycle;
+    uint64_t uart_cycles_per_byte_fixes;
+    uint64_t twi_status_fixes, twi_transactions, twi_naks;
+    uint64_t ads_conversions, cs_conversions, cs_words_read, cs_partial_reads;
+    uint64_t plant_queries;
+    uint64_t resets;               // times the AVR came back to the reset vector after starting
+    // sample-period jitter: intervals between ADS1115 conversion starts
+    uint64_t ads_last_start;
+    uint64_t ads_intervals;
+    double ads_interval_sum, ads_interval_sq_sum, ads_interval_min, ads_interval_max;
+    // ISR durations
+    uint64_t isr_max_cycles[64], isr_count[64], isr_entered[64];
+    int isr_active[64];
+    char error[256];
+};
+
+double harness_time_s(const struct harness *h);
+int harness_motor_moving(const struct harness *h);
+double harness_heater_duty(const struct harness *h);
+
+// Modules (see each .c for its contract).
+void drive_attach(struct harness *h);
+void drive_check_interlock(struct harness *h);  // also called every slice (Timer2 has no IRQ)
+void ads1115_attach(struct harness *h, uint8_t address7);
+void cs5513_attach(struct harness *h, double conversion_us);
+void isr_timing_attach(struct harness *h);
+int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_t errlen);
+// Moves host bytes in and device bytes out; returns bytes still waiting to be sent to the host.
+size_t uart_bridge_service(struct harness *h, int wait_ms);
+uint64_t uart_bridge_last_rx_cycle(void);
+double uart_bridge_last_rx_wall(void);
+void uart_bridge_discard_output(void);
+void uart_bridge_close(void);
+void twi_quirks_apply(struct harness *h);

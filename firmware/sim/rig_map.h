@@ -1,0 +1,38 @@
+// The rig's wiring and the ATmega2560 registers the harness reads, in one place.
+//
+// Contract. Mirrors firmware/hal/pins.h (tests/firmware/test_simavr_harness.py checks
+// the two agree); register addresses are data-space addresses from the ATmega2560
+// data sheet (register summary), used where simavr offers no IRQ to watch.
+#pragma once
+
+// (port letter, bit)
+#define RIG_STEP_PORT 'A'
+#define RIG_STEP_BIT 0
+#define RIG_DIR_PORT 'A'
+#define RIG_DIR_BIT 1
+#define RIG_EN_PORT 'A'
+#define RIG_EN_BIT 2
+#define RIG_RES_CS_PORT 'C'
+#define RIG_RES_CS_BIT 0
+#define RIG_RES_SCLK_PORT 'C'
+#define RIG_RES_SCLK_BIT 1
+#define RIG_RES_SDO_PORT 'C'
+#define RIG_RES_SDO_BIT 2
+#define RIG_ISRC_EN_PORT 'C'
+#define RIG_ISRC_EN_BIT 3
+#define RIG_HEATER_PORT 'B'
+#define RIG_HEATER_BIT 4
+
+// Timer2 drives the heater gate (OC2A = PB4) in fast PWM.
+#define REG_PORTB 0x25
+#define REG_TCCR2A 0xB0
+#define REG_OCR2A 0xB3
+#define TCCR2A_COM2A1 7
+
+// TWI status register (prescaler in bits 1:0).
+#define REG_TWSR 0xB9
+
+// A4988 timing (data sheet, electrical characteristics).
+#define A4988_MIN_PULSE_NS 1000
+#define A4988_DIR_SETUP_NS 200
+#define A4988_DIR_HOLD_NS 200

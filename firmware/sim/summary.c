@@ -1,0 +1,86 @@
+// See summary.h. Keys carry their units (_s, _us, _cycles, _bytes_per_s).
+#include "summary.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static const char *vector_name(int v) {
+    switch (v) {
+        case 12: return "WDT";
+        case 17: return "TIMER1_COMPA";
+        case 25: return "USART0_RX";
+        case 26: return "USART0_UDRE";
+        case 35: return "TIMER3_OVF";
+        case 39: return "TWI";
+        default: return NULL;
+    }
+}
+
+static void json_string(FILE *f, const char *s) {
+    fputc('"', f);
+    for (; *s; ++s) {
+        if (*s == '"' || *s == '\\') fputc('\\', f);
+        if ((unsigned char)*s < 0x20) fprintf(f, "\\u%04x", *s);
+        else fputc(*s, f);
+    }
+    fputc('"', f);
+}
+
+int summary_write(const struct harness *h, const char *path, const char *elf, const char *reason, int crashed,
+                  double wall_s) {
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    const double t = (double)h->avr->cycle / HZ_CPU;
+    const struct drive_state *d = &h->drive;
+    fprintf(f, "{\n  \"elf\": ");
+    json_string(f, elf);
+    fprintf(f, ",\n  \"mcu\": \"atmega2560\",\n  \"f_cpu_hz\": %.0f,\n", HZ_CPU);
+    fprintf(f, "  \"cycles\": %llu,\n  \"device_time_s\": %.6f,\n  \"wall_time_s\": %.3f,\n",
+            (unsigned long long)h->avr->cycle, t, wall_s);
+    fprintf(f, "  \"stop_reason\": ");
+    json_string(f, reason);
+    fprintf(f, ",\n  \"crashed\": %s,\n  \"resets\": %llu,\n  \"pc\": %u,\n", crashed ? "true" : "false",
+            (unsigned long long)h->resets, (unsigned)h->avr->pc);
+    fprintf(f, "  \"steps\": {\"position\": %ld, \"total\": %llu, \"while_disabled\": %llu,"
+               " \"min_high_cycles\": %llu, \"min_low_cycles\": %llu},\n",
+            (long)d->steps, (unsigned long long)d->steps_total, (unsigned long long)d->steps_while_disabled,
+            (unsigned long long)d->min_step_high_cycles, (unsigned long long)d->min_step_low_cycles);
+    fprintf(f, "  \"violations\": {\"step_pulse_width\": %llu, \"dir_setup\": %llu, \"dir_hold\": %llu,"
+               " \"heater_sense_interlock\": %llu, \"uart_rx_overrun\": %llu},\n",
+            (unsigned long long)d->pulse_width_violations, (unsigned long long)d->dir_setup_violations,
+            (unsigned long long)d->dir_hold_violations, (unsigned long long)d->interlock_violations,
+            (unsigned long long)h->uart_rx_overruns);
+    const double tx_span_s = (double)(h->uart_tx_last_cycle - h->uart_tx_first_cycle) / HZ_CPU;
+    fprintf(f, "  \"uart\": {\"rx_bytes\": %llu, \"tx_bytes\": %llu, \"tx_span_s\": %.6f,"
+               " \"held_before_rxen\": %llu, \"byte_time_fixes\": %llu},\n",
+            (unsigned long long)h->uart_rx_bytes, (unsigned long long)h->uart_tx_bytes, tx_span_s,
+            (unsigned long long)h->uart_rx_held_before_rxen, (unsigned long long)h->uart_cycles_per_byte_fixes);
+    fprintf(f, "  \"twi\": {\"transactions\": %llu, \"naks\": %llu, \"status_fixes\": %llu},\n",
+            (unsigned long long)h->twi_transactions, (unsigned long long)h->twi_naks,
+            (unsigned long long)h->twi_status_fixes);
+    fprintf(f, "  \"adc\": {\"ads1115_conversions\": %llu, \"cs5513_conversions\": %llu,"
+               " \"cs5513_words_read\": %llu, \"cs5513_partial_reads\": %llu, \"plant_queries\": %llu},\n",
+            (unsigned long long)h->ads_conversions, (unsigned long long)h->cs_conversions,
+            (unsigned long long)h->cs_words_read, (unsigned long long)h->cs_partial_reads,
+            (unsigned long long)h->plant_queries);
+    const double n = (double)h->ads_intervals;
+    const double mean = n > 0 ? h->ads_interval_sum / n : 0;
+    const double var = n > 1 ? (h->ads_interval_sq_sum - n * mean * mean) / (n - 1) : 0;
+    const double us = 1e6 / HZ_CPU;
+    fprintf(f, "  \"sample_interval\": {\"count\": %llu, \"mean_us\": %.3f, \"std_us\": %.3f,"
+               " \"min_us\": %.3f, \"max_us\": %.3f},\n",
+            (unsigned long long)h->ads_intervals, mean * us, var > 0 ? sqrt(var) * us : 0.0,
+            h->ads_interval_min * us, h->ads_interval_max * us);
+    fprintf(f, "  \"isr\": {");
+    int first = 1;
+    for (int v = 0; v < 64; ++v) {
+        if (!h->isr_count[v]) continue;
+        const char *name = vector_name(v);
+        fprintf(f, "%s\n    \"%d\": {\"name\": \"%s\", \"count\": %llu, \"max_cycles\": %llu}", first ? "" : ",", v,
+                name ? name : "?", (unsigned long long)h->isr_count[v], (unsigned long long)h->isr_max_cycles[v]);
+        first = 0;
+    }
+    fprintf(f, "\n  }\n}\n");
+    return fclose(f);
+}

@@ -1,0 +1,195 @@
+// UART0 <-> a pseudo-terminal of the harness's own, at the real line rate.
+//
+// Contract. uart_bridge_attach() opens a pty pair, makes the slave raw, links the
+// caller's path to it (a symlink, replaced if present) and keeps its own slave
+// descriptor open, so a client may close and reopen the port without the master
+// seeing EIO. Host bytes are fed to the AVR one per frame time (10 bit times for
+// 8N1 at the configured baud), as a real line delivers them. simavr 1.6 quirks:
+//  - its UART counts 11 bits per byte (a parity bit even when parity is off) and
+//    computes the byte time only when UBRR is written, before the firmware sets U2X;
+//    the bridge recomputes the byte time from the registers on every service call;
+//  - its 64-byte RX FIFO with XON/XOFF hides overruns: the bridge ignores XON/XOFF
+//    and, when a byte completes while two unread bytes already wait (the real
+//    2-level receive buffer is full), drops it and counts an overrun, as the chip's
+//    DOR would;
+//  - bytes arriving before RXEN0 is set would be dropped: the bridge holds them
+//    until the receiver is enabled and counts them (the host should wait for BOOT).
+#define _GNU_SOURCE
+#include <errno.h>
+#include <fcntl.h>
+#include <pty.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/select.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <avr_uart.h>
+
+#include "harness.h"
+
+#define RING 65536
+
+static struct {
+    struct harness *h;
+    avr_uart_t *uart;
+    avr_irq_t *rx_irq;
+    int master, slave;
+    uint8_t rx[RING];
+    size_t rx_head, rx_tail;    // host -> AVR
+    uint8_t *tx;
+    size_t tx_len, tx_cap;      // AVR -> host, not yet written
+    int pump_running;
+    uint64_t last_rx_cycle;
+    double last_rx_wall;
+    int held_counted;
+} g;
+
+static double wall_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static uint64_t frame_cycles(void) {
+    avr_t *avr = g.h->avr;
+    avr_uart_t *u = g.uart;
+    const uint32_t ubrr = avr_regbit_get(avr, u->ubrrl) | (avr_regbit_get(avr, u->ubrrh) << 8);
+    const int databits[] = {5, 6, 7, 8, 8, 8, 8, 9};
+    const int db = databits[avr_regbit_get(avr, u->ucsz) | (avr_regbit_get(avr, u->ucsz2) << 2)];
+    const int bits = 1 + db + 1 + avr_regbit_get(avr, u->usbs);  // start, data, stop(s); no parity
+    const uint64_t per_bit = (uint64_t)(ubrr + 1) * (avr_regbit_get(avr, u->u2x) ? 8 : 16);
+    return per_bit * (uint64_t)bits;
+}
+
+// Unread bytes in simavr's RX FIFO (its accessor is defined inside simavr only).
+static unsigned rx_fifo_unread(void) {
+    const uart_fifo_t *f = &g.uart->input;
+    return ((unsigned)f->write + uart_fifo_fifo_size - f->read) & (uart_fifo_fifo_size - 1);
+}
+
+static avr_cycle_count_t rx_pump(struct avr_t *avr, avr_cycle_count_t when, void *param) {
+    (void)param;
+    if (g.rx_head == g.rx_tail) {
+        g.pump_running = 0;
+        return 0;
+    }
+    if (!avr_regbit_get(avr, g.uart->rxen)) {
+        if (!g.held_counted) {
+            g.h->uart_rx_held_before_rxen += (g.rx_head - g.rx_tail) & (RING - 1);
+            g.held_counted = 1;
+        }
+        return when + frame_cycles();
+    }
+    const uint8_t byte = g.rx[g.rx_tail];
+    g.rx_tail = (g.rx_tail + 1) & (RING - 1);
+    if (rx_fifo_unread() >= 2) {
+        g.h->uart_rx_overruns++;  // the real chip's DOR: this byte is lost
+    } else {
+        avr_raise_irq(g.rx_irq, byte);
+        g.h->uart_rx_bytes++;
+    }
+    return when + frame_cycles();
+}
+
+static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
+    (void)irq;
+    (void)param;
+    struct harness *h = g.h;
+    if (g.tx_len == g.tx_cap) {
+        g.tx_cap = g.tx_cap ? g.tx_cap * 2 : 65536;
+        g.tx = realloc(g.tx, g.tx_cap);
+    }
+    g.tx[g.tx_len++] = (uint8_t)value;
+    if (!h->uart_tx_bytes) h->uart_tx_first_cycle = h->avr->cycle;
+    h->uart_tx_last_cycle = h->avr->cycle;
+    h->uart_tx_bytes++;
+}
+
+int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_t errlen) {
+    memset(&g, 0, sizeof g);
+    g.h = h;
+    for (avr_io_t *io = h->avr->io_port; io; io = io->next)
+        if (io->kind && strcmp(io->kind, "uart") == 0 && ((avr_uart_t *)io)->name == '0') g.uart = (avr_uart_t *)io;
+    if (!g.uart) {
+        snprintf(err, errlen, "this MCU model has no UART0");
+        return -1;
+    }
+    uint32_t flags = 0;
+    avr_ioctl(h->avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+    flags &= ~(AVR_UART_FLAG_STDIO | AVR_UART_FLAG_POLL_SLEEP);
+    avr_ioctl(h->avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
+    g.rx_irq = avr_io_getirq(h->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+    avr_irq_register_notify(avr_io_getirq(h->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_tx, NULL);
+
+    char name[256];
+    if (openpty(&g.master, &g.slave, name, NULL, NULL) < 0) {
+        snprintf(err, errlen, "openpty failed: %s", strerror(errno));
+        return -1;
+    }
+    struct termios t;
+    tcgetattr(g.slave, &t);
+    cfmakeraw(&t);
+    tcsetattr(g.slave, TCSANOW, &t);
+    fcntl(g.master, F_SETFL, fcntl(g.master, F_GETFL) | O_NONBLOCK);
+    unlink(pty_link);
+    if (symlink(name, pty_link) < 0) {
+        snprintf(err, errlen, "cannot link %s -> %s: %s", pty_link, name, strerror(errno));
+        return -1;
+    }
+    g.last_rx_wall = wall_s();
+    return 0;
+}
+
+size_t uart_bridge_service(struct harness *h, int wait_ms) {
+    const uint64_t real = frame_cycles();
+    if (g.uart->cycles_per_byte != real) {
+        g.uart->cycles_per_byte = real;
+        h->uart_cycles_per_byte_fixes++;
+    }
+    fd_set rd, wr;
+    FD_ZERO(&rd);
+    FD_ZERO(&wr);
+    FD_SET(g.master, &rd);
+    if (g.tx_len) FD_SET(g.master, &wr);
+    struct timeval tv = {wait_ms / 1000, (wait_ms % 1000) * 1000};
+    if (select(g.master + 1, &rd, &wr, NULL, &tv) <= 0) return g.tx_len;
+    if (FD_ISSET(g.master, &rd)) {
+        uint8_t buf[4096];
+        const size_t space = (g.rx_tail - g.rx_head - 1) & (RING - 1);
+        const ssize_t n = read(g.master, buf, space < sizeof buf ? space : sizeof buf);
+        for (ssize_t i = 0; i < n; ++i) {
+            g.rx[g.rx_head] = buf[i];
+            g.rx_head = (g.rx_head + 1) & (RING - 1);
+        }
+        if (n > 0) {
+            g.last_rx_cycle = h->avr->cycle;
+            g.last_rx_wall = wall_s();
+            if (!g.pump_running) {
+                g.pump_running = 1;
+                avr_cycle_timer_register(h->avr, real, rx_pump, NULL);
+            }
+        }
+    }
+    if (g.tx_len && FD_ISSET(g.master, &wr)) {
+        const ssize_t w = write(g.master, g.tx, g.tx_len);
+        if (w > 0) {
+            memmove(g.tx, g.tx + w, g.tx_len - (size_t)w);
+            g.tx_len -= (size_t)w;
+        }
+    }
+    return g.tx_len;
+}
+
+uint64_t uart_bridge_last_rx_cycle(void) { return g.last_rx_cycle; }
+double uart_bridge_last_rx_wall(void) { return g.last_rx_wall; }
+void uart_bridge_discard_output(void) { g.tx_len = 0; }
+
+void uart_bridge_close(void) {
+    if (g.master > 0) close(g.master);
+    if (g.slave > 0) close(g.slave);
+    free(g.tx);
+    g.tx = NULL;
+}

@@ -1,0 +1,189 @@
+"""Start and stop the firmware-in-the-loop bench: the simavr harness plus its plant.
+
+Units: times in s unless a name says ms or us.
+
+Contract: :class:`SimavrBench` is a context manager. Entering it builds the firmware
+ELF and the harness (``make -C <firmware_dir> harness``, a no-op when up to date),
+starts a :class:`~tsa_bench.simavr.plant_server.PlantServer` on a Unix socket in a
+private temporary directory, starts ``tsa_simavr`` on a pty in that directory and
+waits for it to connect. The caller then opens :attr:`port_path` like any serial
+port and calls :meth:`start`, which releases the AVR from reset (as opening a real
+Mega's port does through DTR): the device's BOOT frame follows. Leaving the context
+sends SIGTERM, waits for the harness to write its JSON summary (:attr:`summary`) and
+removes the directory. Failures raise :class:`SimavrError` with what to check.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tsa_bench.bench.config import BenchConfig, BenchConfigError
+from tsa_bench.simavr.plant_server import PlantServer
+
+__all__ = ["SimavrBench", "SimavrError", "SimavrSettings", "simavr_settings"]
+
+
+class SimavrError(RuntimeError):
+    """The firmware-in-the-loop bench could not be built, started or stopped cleanly."""
+
+
+@dataclass(frozen=True)
+class SimavrSettings:
+    """The ``simavr:`` section of a bench file (paths already resolved)."""
+
+    firmware_dir: Path
+    heater_supply_V: float = 24.0
+    lead_ms: float = 1000.0
+    host_gone_ms: float = 4000.0
+    realtime_factor: float = 0.0          # 0 = as fast as the host keeps up
+    cs5513_conversion_us: float = 19125.0
+    build: bool = True
+
+    @property
+    def elf(self) -> Path:
+        return self.firmware_dir / "build" / "tsa_bench.elf"
+
+    @property
+    def harness(self) -> Path:
+        return self.firmware_dir / "build" / "tsa_simavr"
+
+
+_NUMBERS = {"heater_supply_V": (0.0, 100.0), "lead_ms": (1.0, 60000.0), "host_gone_ms": (10.0, 600000.0),
+            "realtime_factor": (0.0, 1000.0), "cs5513_conversion_us": (1000.0, 1000000.0)}
+
+
+def simavr_settings(bench: BenchConfig) -> SimavrSettings:
+    """The bench file's ``simavr:`` section; raise BenchConfigError naming file and key.
+
+    ``firmware_dir`` is relative to the bench file's directory (default: the
+    checkout's ``firmware/``).
+    """
+    where = f"{bench.path or '<bench>'}: simavr"
+    data = dict(bench.simavr)
+    allowed = {"firmware_dir", "build", *_NUMBERS}
+    for key in data:
+        if key not in allowed:
+            raise BenchConfigError(f"{where}: unknown key '{key}' (allowed: {', '.join(sorted(allowed))})")
+    base = Path(bench.path).resolve().parent if bench.path else Path.cwd()
+    fw = data.pop("firmware_dir", None)
+    if fw is None:
+        firmware_dir = Path(__file__).resolve().parents[3] / "firmware"
+    elif isinstance(fw, str):
+        firmware_dir = (base / fw).resolve()
+    else:
+        raise BenchConfigError(f"{where}: 'firmware_dir' must be a path, got {fw!r}")
+    build = data.pop("build", True)
+    if not isinstance(build, bool):
+        raise BenchConfigError(f"{where}: 'build' must be true or false, got {build!r}")
+    values: dict[str, float] = {}
+    for key, value in data.items():
+        lo, hi = _NUMBERS[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+            raise BenchConfigError(f"{where}: '{key}' must be a number in [{lo:g}, {hi:g}], got {value!r}")
+        values[key] = float(value)
+    return SimavrSettings(firmware_dir=firmware_dir, build=build, **values)
+
+
+class SimavrBench:
+    """The firmware ELF running in simavr on a pty, coupled to the Python plant."""
+
+    def __init__(self, bench: BenchConfig, settings: SimavrSettings, seed: int | None = None,
+                 connect_timeout_s: float = 20.0) -> None:
+        self.bench = bench
+        self.settings = settings
+        self.seed = seed
+        self.connect_timeout_s = connect_timeout_s
+        self.summary: dict[str, Any] | None = None
+        self.returncode: int | None = None
+        self.stderr_text = ""
+        self._dir: Path | None = None
+        self._proc: subprocess.Popen | None = None
+        self.plant: PlantServer | None = None
+
+    @property
+    def port_path(self) -> str:
+        assert self._dir is not None, "use SimavrBench as a context manager"
+        return str(self._dir / "tty")
+
+    def build(self) -> None:
+        result = subprocess.run(["make", "-C", str(self.settings.firmware_dir), "--no-print-directory", "-s",
+                                 "harness"], capture_output=True, text=True)
+        if result.returncode != 0:
+            raise SimavrError(
+                f"building the firmware and the simavr harness in {self.settings.firmware_dir} failed "
+                f"(install the toolchain: bash scripts/setup-firmware-toolchain.sh):\n"
+                + (result.stdout + result.stderr)[-3000:])
+
+    def __enter__(self) -> "SimavrBench":
+        s = self.settings
+        if s.build:
+            self.build()
+        for path in (s.elf, s.harness):
+            if not path.exists():
+                raise SimavrError(f"{path} does not exist: run `make -C {s.firmware_dir} harness`")
+        self._dir = Path(tempfile.mkdtemp(prefix="tsa-simavr-"))
+        try:
+            self.plant = PlantServer(self.bench, str(self._dir / "plant.sock"), s.heater_supply_V, seed=self.seed)
+            cmd = [str(s.harness), "--elf", str(s.elf), "--pty", self.port_path,
+                   "--plant", self.plant.path, "--summary", str(self._dir / "summary.json"),
+                   "--lead-ms", repr(s.lead_ms), "--host-gone-ms", repr(s.host_gone_ms),
+                   "--realtime", repr(s.realtime_factor), "--cs5513-conversion-us", repr(s.cs5513_conversion_us)]
+            self._stderr = open(self._dir / "stderr.txt", "w+")
+            self._proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=self._stderr)
+            try:
+                self.plant.wait_connected(self.connect_timeout_s)
+            except (TimeoutError, ConnectionError) as exc:
+                code = self._proc.poll()
+                raise SimavrError(f"{exc}; harness exit code {code}: {self._read_stderr()}") from None
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def start(self) -> None:
+        """Release the AVR from reset; its BOOT frame follows on the pty."""
+        assert self.plant is not None
+        self.plant.start()
+
+    def set_load_g(self, load_g: float) -> None:
+        assert self.plant is not None
+        self.plant.set_load_g(load_g)
+
+    def _read_stderr(self) -> str:
+        try:
+            self._stderr.flush()
+            return (self._dir / "stderr.txt").read_text()[-2000:].strip()  # type: ignore[operator]
+        except (OSError, AttributeError, TypeError):
+            return ""
+
+    def close(self) -> None:
+        """Stop the harness (SIGTERM), collect its summary, remove the directory."""
+        if self._proc is not None and self._proc.poll() is None:
+            self._proc.send_signal(signal.SIGTERM)
+            try:
+                self._proc.wait(15)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait(5)
+        if self._proc is not None:
+            self.returncode = self._proc.returncode
+        if self.plant is not None:
+            self.plant.close()
+        if self._dir is not None:
+            summary = self._dir / "summary.json"
+            if summary.exists():
+                self.summary = json.loads(summary.read_text())
+            self.stderr_text = self._read_stderr()
+            self._stderr.close()
+            shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

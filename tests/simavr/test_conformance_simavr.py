@@ -1,0 +1,82 @@
+"""One set of scripted exchanges against the simulated device (the executable
+specification) and the firmware ELF in simavr: the observable results must agree.
+Where they differ one of them is wrong (this suite found that the firmware lost
+sample slots while the CS5513 settled, and that the simulated device had no CS5513
+timing at all; both were fixed)."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests import conformance_scenarios as sc
+from tests.simavr.conftest import sim_port, simavr_port
+
+SETTLE_S = 0.08      # quiet wall time that ends an exchange on simavr (~0.25 s of device time)
+FIRST_REPLY_S = 2.0  # longest wait for the first reply (the emulated CPU slows under load)
+
+
+def run_both(scenario, firmware_dir, **settings):
+    sim = scenario(sc.Exchange(sim_port(), settle_s=0))
+    with simavr_port(firmware_dir, **settings) as (port, bench):
+        fil = scenario(sc.Exchange(port, settle_s=SETTLE_S, first_reply_s=FIRST_REPLY_S))
+    assert bench.summary is not None and not bench.summary["crashed"], bench.stderr_text
+    return sim, fil, bench.summary
+
+
+def assert_same_log(fil_log, sim_log):
+    assert len(fil_log) == len(sim_log)
+    for i, (fil, sim) in enumerate(zip(fil_log, sim_log)):
+        assert fil == sim, f"exchange {i}: firmware in simavr {fil} != simulated device {sim}"
+
+
+def test_every_command_refusal_duplicate_and_full_queue(firmware_dir):
+    sim, fil, summary = run_both(sc.every_command_and_refusal, firmware_dir)
+    assert_same_log(fil, sim)
+    statuses = {r[2] for step in sim for r in step if r[0] == "ACK"}
+    assert {"OK", "QUEUE_FULL", "BAD_ARGUMENT", "LIMIT_EXCEEDED", "UNKNOWN_MESSAGE", "BAD_LENGTH"} <= statuses
+    assert summary["violations"]["uart_rx_overrun"] == 0
+
+
+def test_corrupt_frames_are_dropped_without_losing_the_next(firmware_dir):
+    sim, fil, _ = run_both(sc.corrupt_frames, firmware_dir)
+    assert_same_log(fil, sim)
+    assert sim[1:4] == [[], [], []]                      # no answer to corrupt frames
+    assert [r[0] for r in sim[4]] == ["ACK", "QUEUE_STATUS"]  # the valid one after garbage
+
+
+def test_stop_during_a_move(firmware_dir):
+    sim, fil, summary = run_both(sc.stop_during_move, firmware_dir)
+    assert_same_log(fil["log"], sim["log"])
+    for obs in (sim, fil):
+        assert obs["stopped_mid_move"] and obs["frozen_after"] and not obs["segment_done"]
+    assert 1600 < summary["steps"]["position"] < 32_000     # the A4988 saw it stop
+    assert summary["violations"]["step_pulse_width"] == summary["violations"]["dir_setup"] == 0
+
+
+def test_watchdog_trip_stops_heater_and_latches(firmware_dir):
+    sim, fil, _ = run_both(sc.watchdog_trip, firmware_dir, host_gone_ms=300)
+    assert_same_log(fil["log"], sim["log"])
+    assert fil["faults"] == sim["faults"] == [("EVENT", "FAULT", 3, int(sc.msg.Fault.WATCHDOG))]
+    for obs in (sim, fil):
+        assert obs["heater_on_before"] and obs["heater_off_after"]
+    assert [r[2] for r in sim["log"][4] if r[0] == "ACK"] == ["BAD_STATE"]
+
+
+def test_heater_sense_interlock_and_counter_continuity(firmware_dir):
+    sim, fil, summary = run_both(sc.heater_sense_interlock, firmware_dir)
+    assert_same_log(fil["log"], sim["log"])
+    for obs in (sim, fil):
+        assert obs["continuous"] and obs["heated_not_measured"] and obs["measured_before_heating"]
+    # ~80 ms of CS5513 settling after the current returns: 3-4 slots at 20 ms
+    assert 2 <= fil["samples_until_resistance_back"] <= 5
+    assert abs(fil["samples_until_resistance_back"] - sim["samples_until_resistance_back"]) <= 1
+    assert summary["violations"]["heater_sense_interlock"] == 0
+
+
+@pytest.mark.parametrize("scenario", [sc.short_period])
+def test_period_shorter_than_a_conversion_keeps_every_slot(firmware_dir, scenario):
+    sim, fil, _ = run_both(scenario, firmware_dir)
+    assert_same_log(fil["log"], sim["log"])
+    assert sim["continuous"] and fil["continuous"]
+    assert 0.3 < fil["measured_fraction"] < 0.7
+    assert abs(fil["measured_fraction"] - sim["measured_fraction"]) < 0.15
