@@ -41,6 +41,12 @@ def _read(paths: tuple[str, ...] | list[str]):
     return out
 
 
+def _console() -> Console:
+    """A rich console; wide when not a terminal (pipes, tests) so no column is cut."""
+    console = Console()
+    return console if console.is_terminal else Console(width=160)
+
+
 def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> Table:
     table = Table(title=title)
     for col in ("set", "run", "n", "E_aver", "sigma", "max |e|", "mean % (3.21)", "max % (3.21)"):
@@ -72,7 +78,7 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
     save_model(saved, out)
     rows = [("identification", p, m) for p, m in saved.metrics["identification"].items()]
     rows += [("validation", p, m) for p, m in saved.metrics["validation"].items()]
-    Console().print(_metrics_table(f"{model}: {saved.input['column']} -> {saved.output['column']}", rows))
+    _console().print(_metrics_table(f"{model}: {saved.input['column']} -> {saved.output['column']}", rows))
     click.echo(f"model written to {out}")
 
 
@@ -92,7 +98,7 @@ def predict_cmd(model_file: str, run: str, write_prediction: bool) -> None:
         pred, metrics = evaluate(saved, data)
     except (FitError, ModelFileError) as exc:
         _fail(str(exc) if str(exc).startswith(run) else f"{model_file}: {exc}")
-    Console().print(_metrics_table(f"{saved.model} ({Path(model_file).name}): "
+    _console().print(_metrics_table(f"{saved.model} ({Path(model_file).name}): "
                                    f"{saved.input['column']} -> {saved.output['column']}",
                                    [("prediction", run, metrics)]))
     if write_prediction:
@@ -133,7 +139,7 @@ def manipulator_cmd(config: str) -> None:
         ctl = doc.get("control", {})
     except (TypeError, ValueError) as exc:
         _fail(f"{config}: {exc}")
-    console = Console()
+    console = _console()
     theta = np.degrees(bending_angle(turns * TWO_PI, geom))
     theta_c = np.degrees(bending_angle(turns * TWO_PI, geom, radius_growth=False))
     t = Table(title="bending angle (eq. 4.8)")

@@ -204,5 +204,7 @@ class SelfSensingModel:
             return (est - targets)[ok]
 
         x0 = np.array(start + start)
+        r0 = residuals(x0)
         res = least_squares(residuals, x0, x_scale="jac", max_nfev=max_evaluations)
-        return cls(forward, tuple(float(v) for v in res.x[:4]), tuple(float(v) for v in res.x[4:]))
+        best = res.x if np.isfinite(res.cost) and 2 * res.cost <= float(r0 @ r0) else x0
+        return cls(forward, tuple(float(v) for v in best[:4]), tuple(float(v) for v in best[4:]))

@@ -12,7 +12,8 @@ Model, evaluated on the holds of a run (one step k per hold, :mod:`~tsa_bench.mo
 
 with v(k) the mean length over hold k, ``vdot_k`` the length step over the step
 duration, ``r_0 = 0`` so ``p_0`` is the linear term (the thesis's ``a = s p_0``), ``p_n >= 0``,
-``s = +-1`` the sign of dR/dL, and an offset ``y0`` (the resistance at zero length
+``s = +-1`` the sign of dR/dL, ``p_0`` at least :data:`MIN_LINEAR_FRACTION` of the
+least-squares slope |dR/dL| (so the inverse stays well conditioned), and an offset ``y0`` (the resistance at zero length
 extrapolated; eq. 3.14 has none because the thesis's y is measured from a datum).
 Identification follows the thesis's procedure: (1) cut every training run into its
 hold curves, (2) fit the transient decay with b1, b2 <= 0 shared by all curves and a
@@ -40,6 +41,9 @@ N_CREEP = 2
 #: Bounds of the nonlinear parameters (alpha mm, beta 1, lambda, eps 1, Lambda_1, Lambda_2 1/s).
 BOUNDS = ((1e-3, 20.0), (1.0, 20.0), (0.0, 100.0), (0.2, 3.0), (1e-4, 1.0), (1e-3, 10.0))
 NONLINEAR = ("alpha_mm", "beta", "lambda", "epsilon", "Lambda1_per_s", "Lambda2_per_s")
+#: Lower bound of p_0 (the linear term) as a fraction of the overall slope dR/dL: keeps the
+#: analytic inverse's gain 1/p_0 bounded so the self-sensing inverse does not amplify noise.
+MIN_LINEAR_FRACTION = 0.1
 STARTS = ((1.0, 1.0, 1.0, 1.0, 1.0, 1.0), (0.5, 1.5, 1.0, 1.0, 0.01, 0.5), (2.0, 1.2, 0.2, 0.7, 0.003, 0.1))
 
 
@@ -109,7 +113,7 @@ class StrainResistanceModel:
             pos += m
         slope = np.polyfit(np.concatenate([s.length_mm[1:] for s in seqs]), np.concatenate(targets), 1)[0]
         sign = 1.0 if slope >= 0 else -1.0
-        problem = _SteadyProblem(seqs, targets, n_hysteresis, sign)
+        problem = _SteadyProblem(seqs, targets, n_hysteresis, sign, MIN_LINEAR_FRACTION * abs(slope))
         best = None
         for x0 in starts:
             res = minimize(problem.cost, np.clip(x0, [b[0] for b in BOUNDS], [b[1] for b in BOUNDS]),
@@ -131,8 +135,9 @@ class StrainResistanceModel:
 class _SteadyProblem:
     """Eq. 3.19 as a function of the nonlinear parameters; the linear ones solved inside."""
 
-    def __init__(self, seqs: list[StepSequence], targets: list[np.ndarray], nh: int, sign: float) -> None:
-        self.seqs, self.nh, self.sign = seqs, nh, sign
+    def __init__(self, seqs: list[StepSequence], targets: list[np.ndarray], nh: int, sign: float,
+                 min_p0: float) -> None:
+        self.seqs, self.nh, self.sign, self.min_p0 = seqs, nh, sign, max(min_p0, 1e-12)
         self.y = np.concatenate(targets)
         self.ok = np.isfinite(self.y)
         vs = np.concatenate([s.length_mm for s in seqs])
@@ -152,7 +157,7 @@ class _SteadyProblem:
         a = self.design(x)[self.ok]
         nh = self.nh
         lo = np.r_[np.full(nh, 0.0), -np.inf, -np.inf, -np.inf]
-        lo[0] = 1e-9
+        lo[0] = self.min_p0
         # a small ridge keeps the collinear creep and linear columns bounded
         ridge = 1e-6 * np.sqrt(len(a)) * np.eye(a.shape[1])[:-1] * np.r_[np.full(nh + 2, 1.0), 0.0] * self.scale
         aa = np.vstack([a, ridge])
