@@ -279,5 +279,11 @@ from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the 
 
 main.add_command(diagnose)
 
+from tsa_bench.cli_fit import fit_cmd, manipulator_cmd, predict_cmd  # noqa: E402  (issue 7: models)
+
+main.add_command(fit_cmd)
+main.add_command(predict_cmd)
+main.add_command(manipulator_cmd)
+
 if __name__ == "__main__":
     main()

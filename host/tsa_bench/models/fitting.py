@@ -1,0 +1,218 @@
+"""Fit the thesis's models to run files and evaluate them: what `tsa-bench fit` and `predict` do.
+
+Units: run-file columns in their contract units (turn, V, ohm, mm, s); parameters
+stored with units (:mod:`tsa_bench.models.saved`).
+
+Contract:
+
+* preisach / polynomial map one input column (turns, heater_voltage or resistance) to
+  one output column (length or resistance). They are fitted and scored on the
+  quasi-static samples (:func:`quasi_static_mask`: motor stopped, last third of each
+  segment; for heater_voltage input only at the twist where the heater was used),
+  the Preisach relays being driven by the whole input history of each run.
+* strain-resistance maps length -> resistance, self-sensing resistance (+ the
+  motor-moving flag) -> length; both are fitted and scored on the hold samples
+  (motor stopped after a move). Self-sensing first identifies the strain-resistance
+  model on the same runs, then the envelopes.
+* :func:`fit` returns a :class:`~tsa_bench.models.saved.SavedModel` with the
+  identification metrics of each training run and the validation metrics of each
+  ``validate`` run; :func:`evaluate` predicts one run with a saved model. A run that
+  lacks a needed column (or has no usable samples) raises :class:`FitError` naming
+  the file.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from tsa_bench.models.metrics import compare
+from tsa_bench.models.polynomial import PolynomialModel
+from tsa_bench.models.preisach import PreisachModel
+from tsa_bench.models.saved import MODEL_NAMES, SavedModel, param
+from tsa_bench.models.self_sensing import SelfSensingModel
+from tsa_bench.models.steps import RunSeries, series_from_arrays
+from tsa_bench.models.strain_resistance import StrainResistanceModel
+from tsa_bench.store.reader import RunData
+
+INPUTS = ("turns", "heater_voltage", "resistance")
+OUTPUTS = ("length", "resistance")
+FIXED_IO = {"strain-resistance": ("length", "resistance"), "self-sensing": ("resistance", "length")}
+
+
+class FitError(ValueError):
+    """A fit or prediction that cannot run; the message names the file and the problem."""
+
+
+def _column(run: RunData, name: str) -> np.ndarray:
+    if name not in run.samples:
+        raise FitError(f"{run.path}: no sample column '{name}'")
+    a = np.asarray(run.samples[name], dtype=float)
+    if not np.isfinite(a).any():
+        raise FitError(f"{run.path}: column '{name}' has no finite samples")
+    return a
+
+
+def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
+    """Motor stopped and in the last third of its segment; heater input: only at the heating twist."""
+    moving = np.asarray(run.samples["motor_moving"]).astype(bool)
+    seg = np.asarray(run.samples["segment"])
+    t = run.t_s
+    mask = np.zeros(len(t), bool)
+    for s in np.unique(seg):
+        idx = np.flatnonzero((seg == s) & ~moving)
+        if len(idx) == 0:
+            continue
+        t_end, t_start = t[idx[-1]], t[idx[0]]
+        mask[idx[t[idx] >= t_start + 2.0 * (t_end - t_start) / 3.0]] = True
+    if input_col == "heater_voltage":
+        volts = _column(run, "heater_voltage")
+        turns = _column(run, "turns")
+        if not np.nanmax(volts) > 0:
+            raise FitError(f"{run.path}: heater_voltage is never above 0 V; nothing to fit against it")
+        heating_twist = turns[int(np.nanargmax(volts))]
+        mask &= np.abs(turns - heating_twist) < 1e-6
+    return mask
+
+
+def series(run: RunData) -> RunSeries:
+    return series_from_arrays(run.path, _column(run, "t"), _column(run, "length"), _column(run, "resistance"),
+                              np.asarray(run.samples["motor_moving"]))
+
+
+def _check_io(model: str, input_col: str | None, output_col: str | None) -> tuple[str, str]:
+    if model not in MODEL_NAMES:
+        raise FitError(f"unknown model '{model}' (known: {', '.join(MODEL_NAMES)})")
+    if model in FIXED_IO:
+        fixed = FIXED_IO[model]
+        if (input_col or fixed[0]) != fixed[0] or (output_col or fixed[1]) != fixed[1]:
+            raise FitError(f"model '{model}' maps {fixed[0]} -> {fixed[1]}; --input/--output cannot change that")
+        return fixed
+    i, o = input_col or "turns", output_col or "length"
+    if i not in INPUTS:
+        raise FitError(f"--input must be one of {', '.join(INPUTS)}, got '{i}'")
+    if o not in OUTPUTS:
+        raise FitError(f"--output must be one of {', '.join(OUTPUTS)}, got '{o}'")
+    if i == o:
+        raise FitError(f"input and output are both '{i}'")
+    return i, o
+
+
+# -- model objects <-> saved parameters ------------------------------------
+def _to_saved(model: str, obj: Any, io: tuple[str, str], units: tuple[str, str]) -> SavedModel:
+    ui, uo = units
+    if isinstance(obj, PreisachModel):
+        p = {"levels": param(obj.levels, "1"), "u_min": param(obj.u_min, ui), "u_max": param(obj.u_max, ui),
+             "weights": param(list(obj.weights), uo), "offset": param(obj.offset, uo), "sign": param(obj.sign, "1")}
+    elif isinstance(obj, PolynomialModel):
+        p = {f"p{i}": param(c, f"{uo}/{ui}^{i}" if i else uo) for i, c in enumerate(obj.coefficients)}
+    else:
+        sr = obj.forward if isinstance(obj, SelfSensingModel) else obj
+        p = {"b1": param(sr.b1_ohm, "ohm"), "b2": param(sr.b2_ohm, "ohm"), "eps": param(sr.eps_s, "s"),
+             "alpha": param(sr.alpha_mm, "mm"), "beta": param(sr.beta, "1"),
+             "lambda": param(sr.lam, "(s/mm)^epsilon"), "epsilon": param(sr.epsilon, "1"),
+             "Lambda": param(list(sr.creep_rates_per_s), "1/s"),
+             "c": param(list(sr.creep_densities_ohm_per_mm), "ohm/mm"),
+             "a": param(sr.a_ohm_per_mm, "ohm/mm"),
+             "pi_weights": param(list(sr.weights_ohm_per_mm), "ohm/mm"), "sign": param(sr.sign, "1"),
+             "offset": param(sr.offset_ohm, "ohm")}
+        if isinstance(obj, SelfSensingModel):
+            units_env = ("ohm", "1/ohm", "1", "ohm")
+            for prefix, vals in (("rho", obj.rho), ("phi", obj.phi)):
+                for i, (v, u) in enumerate(zip(vals, units_env)):
+                    p[f"{prefix}{i}"] = param(v, u)
+    return SavedModel(model, {"column": io[0], "unit": ui}, {"column": io[1], "unit": uo}, p)
+
+
+def from_saved(saved: SavedModel) -> Any:
+    """The model object of a saved model (raises ModelFileError on a missing parameter)."""
+    v = saved.value
+    if saved.model == "preisach":
+        return PreisachModel(int(v("levels")), float(v("u_min")), float(v("u_max")),
+                             tuple(map(float, v("weights"))), float(v("offset")), float(v("sign")))
+    if saved.model == "polynomial":
+        n = len([k for k in saved.parameters if k.startswith("p")])
+        return PolynomialModel(tuple(float(v(f"p{i}")) for i in range(n)))
+    sr = StrainResistanceModel(float(v("b1")), float(v("b2")), float(v("alpha")), float(v("beta")),
+                               float(v("lambda")), float(v("epsilon")), tuple(map(float, v("Lambda"))),
+                               tuple(map(float, v("c"))), tuple(map(float, v("pi_weights"))), float(v("sign")),
+                               float(v("offset")), float(v("eps")))
+    if saved.model == "strain-resistance":
+        return sr
+    return SelfSensingModel(sr, tuple(float(v(f"rho{i}")) for i in range(4)),
+                            tuple(float(v(f"phi{i}")) for i in range(4)))
+
+
+# -- fit and evaluate ------------------------------------------------------
+def _predict(obj: Any, run: RunData, io: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """(prediction at every sample, mask of the samples it is scored on)."""
+    if isinstance(obj, (StrainResistanceModel, SelfSensingModel)):
+        s = series(run)
+        try:
+            pred = obj.predict(s)
+        except ValueError as exc:
+            raise FitError(f"{run.path}: {exc}") from None
+        return pred, np.isfinite(pred)
+    u = _column(run, io[0])
+    ok = np.isfinite(u)
+    pred = np.full(len(u), np.nan)
+    if isinstance(obj, PreisachModel):
+        pred[ok] = obj.predict(u[ok])
+    else:
+        pred[ok] = obj.predict(u[ok])
+    return pred, quasi_static_mask(run, io[0]) & ok
+
+
+def evaluate(saved: SavedModel, run: RunData, obj: Any | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    """Prediction of ``run`` and its metrics (:class:`~tsa_bench.models.metrics.Metrics` as a dict)."""
+    io = (saved.input["column"], saved.output["column"])
+    model = from_saved(saved) if obj is None else obj
+    pred, mask = _predict(model, run, io)
+    y = _column(run, io[1])
+    if not (mask & np.isfinite(y)).any():
+        raise FitError(f"{run.path}: no samples to score the {saved.model} model on")
+    return pred, compare(y[mask], pred[mask], saved.output["unit"]).as_dict()
+
+
+def fit(model: str, runs: list[RunData], input_col: str | None = None, output_col: str | None = None,
+        validate: list[RunData] | None = None, levels: int = 20, order: int = 3) -> SavedModel:
+    """Identify ``model`` on ``runs``; score it on them and on ``validate`` (module docstring)."""
+    io = _check_io(model, input_col, output_col)
+    if not runs:
+        raise FitError("no training runs given")
+    units = (runs[0].units.get(io[0], ""), runs[0].units.get(io[1], ""))
+    if model in FIXED_IO:
+        ss = [series(r) for r in runs]
+        try:
+            obj: Any = StrainResistanceModel.identify(ss)
+            if model == "self-sensing":
+                obj = SelfSensingModel.identify(obj, ss)
+        except ValueError as exc:
+            raise FitError(f"{', '.join(r.path for r in runs)}: {exc}") from None
+    else:
+        us, ys = [], []
+        for r in runs:
+            u, y = _column(r, io[0]), _column(r, io[1]).copy()
+            mask = quasi_static_mask(r, io[0])
+            if not (mask & np.isfinite(y)).any():
+                raise FitError(f"{r.path}: no quasi-static samples of '{io[1]}' to fit")
+            y[~mask] = np.nan
+            ok = np.isfinite(u)
+            us.append(u[ok]); ys.append(y[ok])
+        try:
+            if model == "preisach":
+                obj = PreisachModel.fit(us, ys, levels=levels)
+            else:
+                uu, yy = np.concatenate(us), np.concatenate(ys)
+                obj = PolynomialModel.fit(uu, yy, order=order)
+        except ValueError as exc:
+            raise FitError(f"{', '.join(r.path for r in runs)}: {exc}") from None
+    saved = _to_saved(model, obj, io, units)
+    saved.options = {"levels": levels} if model == "preisach" else {"order": order} if model == "polynomial" else {}
+    saved.training_files = [r.path for r in runs]
+    for r in runs:
+        saved.metrics["identification"][r.path] = evaluate(saved, r, obj)[1]
+    for r in validate or []:
+        saved.metrics["validation"][r.path] = evaluate(saved, r, obj)[1]
+    return saved

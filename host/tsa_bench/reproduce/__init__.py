@@ -1,0 +1,1 @@
+"""The thesis's chapter-3 modelling procedures reproduced on simulated runs (issue 7)."""

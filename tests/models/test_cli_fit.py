@@ -1,0 +1,95 @@
+"""`tsa-bench fit | predict | manipulator` on simulated runs; clear errors on bad input."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from tsa_bench.cli import main
+from tsa_bench.models.saved import ModelFileError, load_model_file
+from tsa_bench.reproduce.runs import history, simulate_history, step_duration_steps, twist_sweep_steps, write_run
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    out = {}
+    for name, steps, dt in (("a", step_duration_steps(6.0, cycles=1), 0.1), ("b", step_duration_steps(17.0, cycles=1), 0.1),
+                            ("sweep", twist_sweep_steps(81.0), 0.1)):
+        h = history(steps, dt_s=dt, load_g=250.0 if name == "sweep" else 350.0)
+        out[name] = str(write_run(d / f"{name}.h5", h, simulate_history(h, "sim-4ply" if name == "sweep" else "sim")))
+    out["dir"] = d
+    return out
+
+
+def test_fit_predict_round_trip(runs) -> None:
+    model = runs["dir"] / "sr.json"
+    res = CliRunner().invoke(main, ["fit", "strain-resistance", runs["a"], "--validate", runs["b"], "--out", str(model)])
+    assert res.exit_code == 0, res.output
+    assert "identification" in res.output and "validation" in res.output
+    saved = load_model_file(model)
+    assert saved.training_files == [runs["a"]] and runs["b"] in saved.metrics["validation"]
+    assert saved.parameters["b1"]["unit"] == "ohm" and saved.parameters["Lambda"]["unit"] == "1/s"
+    res = CliRunner().invoke(main, ["predict", str(model), runs["b"], "--write-prediction"])
+    assert res.exit_code == 0, res.output
+    with h5py.File(runs["b"], "r") as f:
+        pred = f["samples/predicted_resistance"][()]
+        meas = f["samples/resistance"][()]
+        assert f["samples/predicted_resistance"].attrs["units"] == "ohm"
+    ok = np.isfinite(pred)
+    assert ok.sum() > 100 and np.mean(np.abs(pred[ok] - meas[ok])) < 0.01
+    assert np.mean(np.abs(pred[ok] - meas[ok])) == pytest.approx(saved.metrics["validation"][runs["b"]]["e_aver"])
+
+
+def test_fit_preisach_with_input_option(runs) -> None:
+    model = runs["dir"] / "pre.json"
+    res = CliRunner().invoke(main, ["fit", "preisach", runs["sweep"], "--input", "turns", "--output", "length",
+                                    "--out", str(model)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(model.read_text())
+    assert doc["input"] == {"column": "turns", "unit": "turn"} and len(doc["parameters"]["weights"]["value"]) == 210
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["fit", "nonsense", "X.h5", "--out", "m.json"], "nonsense"),
+    (["fit", "polynomial", "missing.h5", "--out", "m.json"], "missing.h5: no such file"),
+    (["fit", "polynomial", "RUN", "--input", "heater_voltage", "--out", "m.json"], "heater_voltage is never above 0 V"),
+    (["fit", "self-sensing", "RUN", "--input", "turns", "--out", "m.json"], "maps resistance -> length"),
+    (["predict", "missing.json", "RUN"], "missing.json: no such file"),
+])
+def test_errors_name_file_and_problem(runs, tmp_path, args, needle) -> None:
+    args = [runs["a"] if a == "RUN" else str(tmp_path / a) if a.endswith((".h5", ".json")) and a != "X.h5" else a
+            for a in args]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2
+    assert needle in res.output
+
+
+def test_run_lacking_a_column_and_bad_model_file(runs, tmp_path) -> None:
+    broken = tmp_path / "broken.h5"
+    with h5py.File(runs["a"], "r") as src, h5py.File(broken, "w") as dst:
+        for k, v in src.attrs.items():
+            dst.attrs[k] = v
+        for name, ds in src["samples"].items():
+            if name != "resistance":
+                dst.create_dataset(f"samples/{name}", data=ds[()]).attrs["units"] = ds.attrs["units"]
+    res = CliRunner().invoke(main, ["fit", "strain-resistance", str(broken), "--out", str(tmp_path / "m.json")])
+    assert res.exit_code == 2 and "broken.h5" in res.output and "resistance" in res.output
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "something-else"}')
+    with pytest.raises(ModelFileError, match="bad.json: 'format'"):
+        load_model_file(bad)
+
+
+def test_manipulator_command(repo_root) -> None:
+    res = CliRunner().invoke(main, ["manipulator", str(repo_root / "configs" / "manipulator" / "thesis.yaml")])
+    assert res.exit_code == 0, res.output
+    rng = float(res.output.split("bending range ")[1].split(" deg")[0])
+    assert 57 < rng < 63
+    assert "steady-state error" in res.output
+    res = CliRunner().invoke(main, ["manipulator", "nope.yaml"])
+    assert res.exit_code == 2 and "nope.yaml: no such file" in res.output
