@@ -233,5 +233,9 @@ from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the 
 
 main.add_command(diagnose)
 
+from tsa_bench.cli_data import report  # noqa: E402  (issue 8: data hand-off commands)
+
+main.add_command(report)
+
 if __name__ == "__main__":
     main()
