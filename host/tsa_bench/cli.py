@@ -105,6 +105,7 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
     from tsa_bench.runner import AutoOperator, ConsoleOperator, PlanRejected, Runner, check_plan_against_device
     from tsa_bench.store import RunWriter
     from tsa_bench.store.inspect import inspect_run
+    from tsa_bench.store.live import LiveSidecar
 
     bench = _load_bench_or_exit(bench_path)
     plan = _load_plan_or_exit(protocol, bench)
@@ -153,7 +154,8 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
             sys.exit(EXIT_BAD_INPUT)
         writer = RunWriter(path)
         operator = AutoOperator() if ident.flags & 1 else ConsoleOperator()
-        runner = Runner(client, plan, bench, [writer, ProgressDisplay()], operator, backend=backend, port_name=url)
+        consumers = [writer, LiveSidecar(path), ProgressDisplay()]  # sidecar after the writer: tsa-bench watch
+        runner = Runner(client, plan, bench, consumers, operator, backend=backend, port_name=url)
         stop = runner.run()
     finally:
         signal.signal(signal.SIGTERM, old_term)
@@ -233,9 +235,10 @@ from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the 
 
 main.add_command(diagnose)
 
-from tsa_bench.cli_data import report  # noqa: E402  (issue 8: data hand-off commands)
+from tsa_bench.cli_data import report, watch  # noqa: E402  (issue 8: data hand-off commands)
 
 main.add_command(report)
+main.add_command(watch)
 
 if __name__ == "__main__":
     main()
