@@ -235,10 +235,10 @@ from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the 
 
 main.add_command(diagnose)
 
-from tsa_bench.cli_data import report, watch  # noqa: E402  (issue 8: data hand-off commands)
+from tsa_bench.cli_data import export, import_cmd, report, watch  # noqa: E402  (issue 8: data hand-off)
 
-main.add_command(report)
-main.add_command(watch)
+for _command in (report, watch, import_cmd, export):
+    main.add_command(_command)
 
 if __name__ == "__main__":
     main()
