@@ -91,10 +91,11 @@ class WatchState:
                 f"segment {seg + 1}/{self.n_segments}  samples={self.samples}  rate={self.rate():.1f}/s")
 
     def table(self, title: str) -> Table:
-        tab = Table(title=title, show_header=True, header_style="bold")
-        for col in ("t (s)", "turns (turn)", "length (mm)", "resistance (ohm)", "heater (V)", "load (N)",
-                    "segment", "samples", "samples/s"):
-            tab.add_column(col, justify="right")
+        # units on a second header line and no borders: fits an 80-column terminal
+        tab = Table(title=title, show_header=True, header_style="bold", box=None, padding=(0, 1))
+        for col in ("t\ns", "turns\nturn", "length\nmm", "resistance\nohm", "heater\nV", "load\nN",
+                    "segment", "samples", "rate\n1/s"):
+            tab.add_column(col, justify="right", no_wrap=True)
         if self.last is not None:
             r = self.last
             tab.add_row(f"{r['t']:.2f}", f"{r['turns']:.3f}", f"{r['length']:.2f}", f"{self.resistance:.4f}",
