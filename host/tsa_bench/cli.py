@@ -135,6 +135,7 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
     from tsa_bench.runner import AutoOperator, ConsoleOperator, PlanRejected, Runner, check_plan_against_device
     from tsa_bench.store import RunWriter
     from tsa_bench.store.inspect import inspect_run
+    from tsa_bench.store.live import LiveSidecar
 
     bench = _load_bench_or_exit(bench_path)
     plan = _load_plan_or_exit(protocol, bench)
@@ -196,7 +197,8 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
             from tsa_bench.simavr.operator import PlantOperator
             operator = PlantOperator(fil)
             operator.apply_initial(plan.load_g)
-        runner = Runner(client, plan, bench, [writer, ProgressDisplay()], operator, backend=backend, port_name=url)
+        consumers = [writer, LiveSidecar(path), ProgressDisplay()]  # sidecar after the writer: tsa-bench watch
+        runner = Runner(client, plan, bench, consumers, operator, backend=backend, port_name=url)
         stop = runner.run()
     finally:
         signal.signal(signal.SIGTERM, old_term)
@@ -279,11 +281,11 @@ from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the 
 
 main.add_command(diagnose)
 
-from tsa_bench.cli_fit import fit_cmd, manipulator_cmd, predict_cmd  # noqa: E402  (issue 7: models)
+from tsa_bench.cli_data import export, import_cmd, report, watch  # noqa: E402  (its own module)
+from tsa_bench.cli_fit import fit_cmd, manipulator_cmd, predict_cmd  # noqa: E402  (its own module)
 
-main.add_command(fit_cmd)
-main.add_command(predict_cmd)
-main.add_command(manipulator_cmd)
+for _command in (fit_cmd, predict_cmd, manipulator_cmd, report, watch, import_cmd, export):
+    main.add_command(_command)
 
 if __name__ == "__main__":
     main()

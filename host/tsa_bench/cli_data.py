@@ -1,0 +1,132 @@
+"""Command line for data hand-off: `tsa-bench report | watch | import | export`.
+
+Registered on the `tsa-bench` group at the bottom of cli.py. Exit codes as there:
+0 success; 1 a watched run ended without success or was killed; 2 bad input (run file,
+CSV, options), with a message naming the file and, for CSV, the line and column.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
+
+
+@click.command()
+@click.argument("run_file", type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Directory for the figures and index.html (default: RUN_report next to the run file).")
+def report(run_file: str, out_dir: str | None) -> None:
+    """Write PNG figures chosen by RUN_FILE's content and an index.html showing them."""
+    from tsa_bench.report.run_report import write_run_report
+    from tsa_bench.store import RunFileError
+
+    try:
+        rep = write_run_report(run_file, out_dir)
+    except RunFileError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    for fig in rep.figures:
+        click.echo(f"wrote {fig.path}")
+    for kind, why in rep.skipped.items():
+        click.echo(f"  no {kind} figure: {why}")
+    click.echo(f"wrote {rep.index}")
+
+
+@click.command()
+@click.argument("run_file", type=click.Path(dir_okay=False))
+@click.option("--plain", is_flag=True, help="One text line per refresh instead of the live table (for logs, tests).")
+@click.option("--once", is_flag=True, help="Show the current state once and exit.")
+@click.option("--interval", "interval_s", type=float, default=0.5, show_default=True,
+              help="Refresh interval (s).")
+@click.option("--wait", "wait_s", type=float, default=10.0, show_default=True,
+              help="How long to wait for a run that has not started yet (s).")
+def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: float) -> None:
+    """Show RUN_FILE's latest samples while `tsa-bench run` records it; end with the run.
+
+    Reads the run's live sidecar RUN_FILE.live (docs/live-view.md), never the HDF5 file
+    being written. Exit code 0 when the run ends in success, 1 when it ends otherwise or
+    was killed, 2 when there is nothing to watch.
+    """
+    from rich.console import Console
+
+    from tsa_bench.console.watch import watch as do_watch
+
+    if interval_s <= 0:
+        click.echo("error: --interval must be > 0 (s)", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    console = Console(force_terminal=None if not plain else False, soft_wrap=plain)
+    sys.exit(do_watch(run_file, plain=plain, once=once, interval_s=interval_s, wait_s=wait_s, console=console))
+
+
+def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
+    """'a=b,c=d' (option may repeat) -> {a: b, c: d}; exits 2 on a malformed pair."""
+    out: dict[str, str] = {}
+    for value in values:
+        for part in value.split(","):
+            if not part.strip():
+                continue
+            key, sep, val = part.partition("=")
+            if not sep or not key.strip() or not val.strip():
+                click.echo(f"error: {option}: '{part}' is not KEY=VALUE", err=True)
+                sys.exit(EXIT_BAD_INPUT)
+            out[key.strip()] = val.strip()
+    return out
+
+
+@click.command("import")
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--map", "maps", multiple=True,
+              help="Contract column = CSV column, comma-separated, e.g. t=time_s,length=len_mm "
+                   "(default: CSV columns named like contract columns).")
+@click.option("--units", "unit_opts", multiple=True,
+              help="Column = unit, e.g. t=ms,load=g (default: the unit in the header, 'name [unit]', else the "
+                   "contract unit).")
+@click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
+@click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
+def import_cmd(csv_file: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], metas: tuple[str, ...],
+               out_file: str) -> None:
+    """Turn CSV_FILE from another rig into a run file (backend "import"); see docs/analysis.md."""
+    from tsa_bench.store.csv_import import CsvImportError, import_csv
+    from tsa_bench.store.inspect import inspect_run
+
+    meta: dict[str, str] = {}
+    for m in metas:  # one pair per --meta: the value may contain commas
+        key, sep, value = m.partition("=")
+        if not sep or not key.strip():
+            click.echo(f"error: --meta: '{m}' is not KEY=VALUE", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        meta[key.strip()] = value
+    try:
+        path = import_csv(csv_file, out_file, _pairs(maps, "--map") if maps else None,
+                          _pairs(unit_opts, "--units"), meta)
+    except CsvImportError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    except OSError as exc:
+        click.echo(f"error: cannot write {out_file}: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    click.echo(f"wrote {path} ({inspect_run(path).n_samples} samples)")
+
+
+@click.command()
+@click.argument("run_file", type=click.Path(dir_okay=False))
+@click.option("--csv", "as_csv", is_flag=True, required=True, help="Write CSV files (the only format so far).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Directory for the CSV files (default: next to the run file).")
+def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
+    """Write RUN_FILE's samples, segments and events as CSV with units in the headers."""
+    from tsa_bench.store import RunFileError
+    from tsa_bench.store.csv_export import export_csv
+
+    if not as_csv:
+        click.echo("error: choose a format: --csv", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    try:
+        for path in export_csv(run_file, out_dir):
+            click.echo(f"wrote {path}")
+    except RunFileError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)

@@ -1,0 +1,93 @@
+"""index.html of a run report: metadata, exit status, the figures with captions.
+
+Contract: :func:`write_index` writes one self-contained HTML page (figures linked by
+relative file name, no scripts, no external resources) next to the figures. Every text
+that comes from the run file (attributes, metadata, reasons, protocol text) is escaped
+with :func:`html.escape`, so a protocol or metadata value can never inject markup.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Root attributes shown first, in this order (docs/run-format.md).
+_FIRST = ("plan_name", "exit_status", "reason", "created", "backend", "firmware", "software", "duration_s",
+          "wall_time_s", "samples_lost", "port")
+_STYLE = ("body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em}"
+          "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:left;"
+          "vertical-align:top}img{max-width:100%;border:1px solid #ddd}.bad{color:#a00;font-weight:bold}"
+          "figure{margin:1.5em 0}figcaption{color:#333}pre{background:#f6f6f6;padding:.5em;overflow:auto}")
+
+
+def _e(x: Any) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _attr_rows(attrs: dict[str, Any]) -> list[tuple[str, str]]:
+    keys = [k for k in _FIRST if k in attrs] + sorted(k for k in attrs if k not in _FIRST
+                                                      and k not in ("metadata", "device_identity"))
+    rows = []
+    for k in keys:
+        v = attrs[k]
+        if k in ("duration_s", "wall_time_s") and isinstance(v, (int, float, np.floating)):
+            v = f"{float(v):.1f} s"
+        rows.append((k, str(v)))
+    meta = attrs.get("metadata")
+    if meta:
+        try:
+            for k, v in json.loads(meta).items():
+                rows.append((f"metadata: {k}", json.dumps(v) if not isinstance(v, str) else v))
+        except (ValueError, AttributeError):
+            rows.append(("metadata", str(meta)))
+    return rows
+
+
+def _status_line(run) -> str:
+    status = run.exit_status
+    if status == "success":
+        return ""
+    if status == "running":
+        text = ("This run was killed (exit_status is still 'running'): the figures show the data up to "
+                "the writer's last flush.")
+    else:
+        text = f"This run ended with status '{status}': {run.attrs.get('reason', '')}. The figures show what it recorded."
+    return f'<p class="bad">{_e(text)}</p>'
+
+
+def write_index(report) -> Path:
+    """Write ``index.html`` for a :class:`~tsa_bench.report.run_report.Report`; return its path."""
+    run = report.run
+    name = run.attrs.get("plan_name") or Path(run.path).stem
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{_e(name)} - tsa-bench report</title>",
+             f"<style>{_STYLE}</style></head><body>",
+             f"<h1>{_e(name)}</h1><p>Run file: <code>{_e(run.path)}</code></p>", _status_line(run)]
+    n, t = len(run), run.samples["t"]
+    span_s = float(t[-1] - t[0]) if n > 1 else 0.0
+    parts.append(f"<p>{n} samples over {span_s:.1f} s of device time; "
+                 f"{0 if run.segments is None else len(run.segments)} segments; "
+                 f"{0 if run.events is None else len(run.events)} events.</p>")
+    parts.append("<h2>Run</h2><table>")
+    parts += [f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _attr_rows(run.attrs)]
+    parts.append("</table>")
+    parts.append("<h2>Figures</h2>")
+    if not report.figures:
+        parts.append("<p>No figures: the run has no samples.</p>")
+    for fig in report.figures:
+        parts.append(f"<figure id='{_e(fig.name)}'><img src='{_e(fig.path.name)}' alt='{_e(fig.name)}'>"
+                     f"<figcaption><b>{_e(fig.name)}</b> (like thesis {_e(fig.thesis)}): {_e(fig.caption)}"
+                     "</figcaption></figure>")
+    if report.skipped:
+        parts.append("<h2>Figures not drawn</h2><ul>")
+        parts += [f"<li><b>{_e(k)}</b>: {_e(v)}</li>" for k, v in report.skipped.items()]
+        parts.append("</ul>")
+    if run.protocol_text:
+        parts.append(f"<h2>Protocol</h2><pre>{_e(run.protocol_text)}</pre>")
+    parts.append("</body></html>\n")
+    path = report.out_dir / "index.html"
+    path.write_text("\n".join(parts), encoding="utf-8")
+    return path

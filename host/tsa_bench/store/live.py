@@ -1,0 +1,210 @@
+"""Live sidecar: the latest samples of a run being recorded, safe to read concurrently.
+
+Why a sidecar: HDF5 is not safe for a reader while another process writes the file
+unless both use SWMR, which needs the newest file format, which we avoid on purpose
+(a killed run would then not open without h5clear; docs/run-format.md). So the run
+file stays the only record, and :class:`LiveSidecar`, a run consumer placed AFTER the
+:class:`~tsa_bench.store.RunWriter`, also appends every sample to ``RUN.h5.live``:
+
+* the file appears atomically (header written to ``RUN.h5.live.tmp``, then renamed),
+  so a reader never sees a partial header;
+* header: 8 bytes ``TSALIVE1``, u32 little-endian length, that many bytes of UTF-8 JSON
+  (``version``, ``record_dtype``, ``record_size``, ``run_file``, ``plan_name``,
+  ``n_segments``, ``estimated_duration_s``, ``pid``, ``host``, ``started``);
+* then fixed-size little-endian records (:data:`RECORD`), append-only, flushed to the
+  operating system at least every ``flush_interval_s`` (0.1 s) and at segment ends; a
+  reader takes only whole records below the size it sees;
+* ``kind`` 0 is a sample; the last record has ``kind`` 1 success, 2 aborted or 3 failed,
+  with ``t`` the run's end time and ``counter`` the number of samples. It is written
+  after the run file is closed, so a reader that sees it may open the run file; then
+  the sidecar is deleted (a reader holding it open still reads it to the end).
+
+A killed run leaves the sidecar without an end record; its ``pid`` then no longer
+exists. Nothing here can lose recorded data: the sidecar never touches the run file,
+and a sidecar that cannot be written is switched off with one warning on stderr (a
+consumer must not raise, or the run would end as failed).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import socket
+import struct
+import sys
+import time
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import numpy as np
+
+from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+
+MAGIC = b"TSALIVE1"
+VERSION = 1
+RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("segment", "<i4"), ("counter", "<u4"),
+                   ("t", "<f8"), ("turns", "<f8"), ("length", "<f8"), ("resistance", "<f8"),
+                   ("heater_voltage", "<f8"), ("load", "<f8")])
+END_KINDS = {"success": 1, "aborted": 2, "failed": 3}
+END_NAMES = {v: k for k, v in END_KINDS.items()}
+
+
+def sidecar_path(run_path: str | Path) -> Path:
+    """``RUN.h5`` -> ``RUN.h5.live``."""
+    p = Path(run_path)
+    return p.with_name(p.name + ".live")
+
+
+class LiveSidecar:
+    """Run consumer writing ``RUN.h5.live``; see the module contract."""
+
+    def __init__(self, run_path: str | Path, flush_interval_s: float = 0.1, remove_at_end: bool = True) -> None:
+        self.run_path = Path(run_path)
+        self.path = sidecar_path(run_path)
+        self.flush_interval_s = flush_interval_s
+        self.remove_at_end = remove_at_end
+        self._f: BinaryIO | None = None
+        self._last_flush = 0.0
+        self.records = 0
+
+    def _fail(self, exc: BaseException) -> None:
+        print(f"warning: live view disabled, cannot write {self.path}: {exc} (the run file is not affected)",
+              file=sys.stderr)
+        try:
+            if self._f is not None:
+                self._f.close()
+        except OSError:
+            pass
+        self._f = None
+
+    def on_start(self, start: RunStart) -> None:
+        header = {"version": VERSION, "record_dtype": [list(d) for d in RECORD.descr], "record_size": RECORD.itemsize,
+                  "run_file": self.run_path.name, "plan_name": start.plan_name, "n_segments": start.n_segments,
+                  "estimated_duration_s": start.estimated_duration_s, "pid": os.getpid(),
+                  "host": socket.gethostname(), "started": dt.datetime.now().astimezone().isoformat(timespec="seconds")}
+        text = json.dumps(header).encode()
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        try:
+            f = open(tmp, "wb")
+            f.write(MAGIC + struct.pack("<I", len(text)) + text)
+            f.flush()
+            os.replace(tmp, self.path)
+            self._f = f
+            self._last_flush = time.monotonic()
+        except OSError as exc:
+            self._fail(exc)
+
+    def _write(self, rec: np.ndarray, force: bool = False) -> None:
+        if self._f is None:
+            return
+        try:
+            self._f.write(rec.tobytes())
+            self.records += len(rec)
+            now = time.monotonic()
+            if force or now - self._last_flush >= self.flush_interval_s:
+                self._f.flush()
+                self._last_flush = now
+        except (OSError, ValueError) as exc:
+            self._fail(exc)
+
+    def on_samples(self, block: SampleBlock) -> None:
+        c = block.columns
+        rec = np.zeros(len(block), dtype=RECORD)
+        for name in RECORD.names[1:]:
+            rec[name] = c[name]
+        self._write(rec)
+
+    def on_segment(self, segment: SegmentRecord) -> None:
+        self._write(np.zeros(0, dtype=RECORD), force=True)
+
+    def on_event(self, event: EventRecord) -> None:
+        pass
+
+    def on_stop(self, stop: RunStop) -> None:
+        end = np.zeros(1, dtype=RECORD)
+        end["kind"] = END_KINDS.get(stop.exit_status, 3)
+        end["t"] = stop.t_end
+        end["counter"] = stop.samples
+        end["segment"] = stop.segments_done
+        self._write(end, force=True)
+        if self._f is None:
+            return
+        try:
+            self._f.close()
+            if self.remove_at_end:
+                self.path.unlink()
+        except OSError as exc:
+            self._fail(exc)
+        self._f = None
+
+
+class LiveFormatError(ValueError):
+    """A file that is not a live sidecar; the message names it."""
+
+
+class LiveTail:
+    """Reads a sidecar while it grows: :meth:`poll` returns the new whole records.
+
+    Holds the file open (so it stays readable after the writer deletes it) and never
+    writes to it or locks it, so it can neither corrupt nor block the writer.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._f = open(self.path, "rb")
+        head = self._f.read(12)
+        if len(head) < 12 or head[:8] != MAGIC:
+            self._f.close()
+            raise LiveFormatError(f"{self.path}: not a tsa-bench live sidecar (bad magic)")
+        (n,) = struct.unpack("<I", head[8:])
+        try:
+            self.header: dict[str, Any] = json.loads(self._f.read(n).decode())
+        except ValueError as exc:
+            self._f.close()
+            raise LiveFormatError(f"{self.path}: unreadable sidecar header ({exc})") from None
+        self.dtype = np.dtype([tuple(d) for d in self.header["record_dtype"]])
+        if self.dtype.itemsize != self.header["record_size"]:
+            self._f.close()
+            raise LiveFormatError(f"{self.path}: record size {self.header['record_size']} does not match its dtype")
+        self._offset = 12 + n
+        self.end_kind: int | None = None
+        self.end_record: np.void | None = None
+
+    @property
+    def ended(self) -> str | None:
+        """Exit status once the end record has been read, else None."""
+        return None if self.end_kind is None else END_NAMES.get(self.end_kind, "failed")
+
+    def poll(self) -> np.ndarray:
+        """New sample records since the last call (whole records only)."""
+        size = os.fstat(self._f.fileno()).st_size
+        k = (size - self._offset) // self.dtype.itemsize
+        if k <= 0:
+            return np.zeros(0, dtype=self.dtype)
+        self._f.seek(self._offset)
+        raw = self._f.read(k * self.dtype.itemsize)
+        k = len(raw) // self.dtype.itemsize
+        self._offset += k * self.dtype.itemsize
+        rec = np.frombuffer(raw[: k * self.dtype.itemsize], dtype=self.dtype)
+        ends = np.flatnonzero(rec["kind"] != 0)
+        if len(ends):
+            self.end_kind = int(rec["kind"][ends[0]])
+            self.end_record = rec[ends[0]]
+            rec = rec[: ends[0]]
+        return rec
+
+    def writer_alive(self) -> bool | None:
+        """True/False when the writer ran on this host (by its pid), None when unknown."""
+        if self.header.get("host") != socket.gethostname():
+            return None
+        try:
+            os.kill(int(self.header["pid"]), 0)
+        except ProcessLookupError:
+            return False
+        except (PermissionError, OSError, ValueError, KeyError):
+            return True
+        return True
+
+    def close(self) -> None:
+        self._f.close()

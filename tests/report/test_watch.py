@@ -1,0 +1,132 @@
+"""Live view: the sidecar written by `tsa-bench run`, read by `tsa-bench watch` while the
+run records, after it finished, and after it was killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+from rich.console import Console
+
+from tests.report.conftest import PROTOCOLS, ROOT, simulate
+from tsa_bench.cli import main
+from tsa_bench.console.watch import WatchState, watch
+from tsa_bench.store import read_run
+from tsa_bench.store.live import RECORD, LiveSidecar, LiveTail, sidecar_path
+
+PROTO = {p.stem: p for p in PROTOCOLS}
+ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host")}
+
+
+def _cli(*args: str, **kw) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", *args], cwd=ROOT, env=ENV, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
+
+
+def test_sidecar_holds_exactly_the_recorded_samples(tmp_path):
+    out = tmp_path / "run.h5"
+    side = LiveSidecar(out, remove_at_end=False)
+    simulate(PROTO["twist-sweep-3ply"], out, consumers=(side,))
+    tail = LiveTail(sidecar_path(out))
+    rec = tail.poll()
+    run = read_run(out)
+    assert tail.ended == "success" and int(tail.end_record["counter"]) == len(run) == len(rec)
+    for name in RECORD.names[1:]:
+        assert np.array_equal(rec[name], run.samples[name], equal_nan=True), name
+
+
+def test_reader_takes_whole_records_only(tmp_path):
+    out = tmp_path / "run.h5"
+    side = LiveSidecar(out, remove_at_end=False)
+    simulate(PROTO["stiffness-3ply"], out, consumers=(side,))
+    path = sidecar_path(out)
+    data = path.read_bytes()
+    torn = tmp_path / "torn.h5.live"
+    torn.write_bytes(data[: len(data) - RECORD.itemsize - 7])  # end record gone, last sample torn
+    tail = LiveTail(torn)
+    rec = tail.poll()
+    assert tail.ended is None and len(rec) == len(read_run(out)) - 1
+    with open(torn, "ab") as f:  # the rest arrives later
+        f.write(data[len(data) - RECORD.itemsize - 7:])
+    assert len(tail.poll()) == 1 and tail.ended == "success"
+
+
+def test_a_sidecar_that_cannot_be_written_does_not_hurt_the_run(tmp_path, capfd):
+    out = tmp_path / "run.h5"
+    (tmp_path / "run.h5.live.tmp").mkdir()  # the sidecar cannot be created
+    simulate(PROTO["stiffness-3ply"], out, consumers=(LiveSidecar(out),))
+    assert read_run(out).exit_status == "success" and len(read_run(out)) == 5399
+    assert "live view disabled" in capfd.readouterr().err
+
+
+def test_watch_follows_a_concurrent_run_to_its_end(tmp_path):
+    out = tmp_path / "live.h5"
+    run = _cli("run", str(PROTO["stiffness-3ply"]), "--output", str(out), "--speed", "150")
+    try:
+        w = _cli("watch", str(out), "--plain", "--interval", "0.3", "--wait", "20")
+        stdout, stderr = w.communicate(timeout=60)
+        run.communicate(timeout=30)
+    finally:
+        for p in (run, w):
+            if p.poll() is None:
+                p.kill()
+    assert run.returncode == 0 and w.returncode == 0, stderr
+    lines = stdout.strip().splitlines()
+    ts = [float(x.split("t=")[1].split()[0]) for x in lines if x.startswith("t=")]
+    assert len(ts) >= 4 and ts == sorted(ts) and ts[0] < 300, lines  # seen while it recorded
+    assert lines[-1].startswith("run ended: success (all segments done); 5399 samples")
+    assert not sidecar_path(out).exists()
+    # a finished run: summarised from the closed file
+    res = CliRunner().invoke(main, ["watch", str(out), "--once"])
+    assert res.exit_code == 0 and "run ended: success" in res.output and "5399 samples" in res.output
+
+
+def test_watch_says_a_killed_run_was_killed(tmp_path):
+    out = tmp_path / "killed.h5"
+    run = _cli("run", str(PROTO["lifetime"]), "--output", str(out), "--speed", "100")
+    try:
+        side = sidecar_path(out)
+        deadline = time.monotonic() + 30
+        while not (side.exists() and side.stat().st_size > 20_000):
+            assert time.monotonic() < deadline, "no live samples"
+            time.sleep(0.1)
+        once = _cli("watch", str(out), "--once", "--plain")
+        assert once.wait(30) == 0 and "run in progress" in once.stdout.read()
+        run.send_signal(signal.SIGKILL)
+        run.wait(10)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    t0 = time.monotonic()
+    res = CliRunner().invoke(main, ["watch", str(out), "--plain", "--interval", "0.1"])
+    assert res.exit_code == 1 and "run was killed" in res.output, res.output
+    assert time.monotonic() - t0 < 5
+    side.unlink()  # without the sidecar, the file itself says it was never closed
+    res = CliRunner().invoke(main, ["watch", str(out)])
+    assert res.exit_code == 1 and "run was killed" in res.output and "never closed" in res.output
+
+
+def test_watch_without_anything_to_watch(tmp_path):
+    res = CliRunner().invoke(main, ["watch", str(tmp_path / "none.h5"), "--wait", "0"])
+    assert res.exit_code == 2 and "no such run file" in res.output
+
+
+def test_live_table_shows_latest_values():
+    state = WatchState(n_segments=7)
+    rec = np.zeros(3, dtype=RECORD)
+    rec["t"] = [1.0, 1.1, 1.2]
+    rec["length"] = [250.0, 251.0, 252.5]
+    rec["resistance"] = [5.1, np.nan, np.nan]  # heater on: the last measured value is shown
+    rec["segment"] = 2
+    state.add(rec)
+    console = Console(record=True, width=160)
+    console.print(state.table("plan"))
+    text = console.export_text()
+    assert "252.50" in text and "5.1000" in text and "3/7" in text and "length" in text
+    assert "resistance=5.1000 ohm" in state.line() and "samples=3" in state.line()
