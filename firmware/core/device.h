@@ -32,6 +32,9 @@ static const uint16_t NO_SEGMENT = 0xFFFF;
 
 typedef void (*SimLoadHandler)(void* ctx, uint32_t load_mg);
 
+// Most steps feed_steps() hands to the step ring per call (see device_exec.cpp).
+static const uint8_t FEED_STEPS_PER_CALL = 8;
+
 class Device {
 public:
     static const uint8_t RX_BUDGET = 64;

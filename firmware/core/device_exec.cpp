@@ -98,7 +98,11 @@ void Device::finish_segment(uint64_t t_us) {
 
 void Device::feed_steps() {
     if (exec_ != EXEC_MOVE) return;
-    while (!planner_.finished() && board_.step_space() > 0) {
+    // Bounded: near the top rate a ramp step costs about as much CPU as it lasts, the
+    // ring never fills and an unbounded loop would starve the sampler and the serial
+    // port for a whole deceleration (found in simavr: a lost sample slot at 16,000
+    // steps/s). poll() calls this twice per pass.
+    for (uint8_t n = 0; n < FEED_STEPS_PER_CALL && !planner_.finished() && board_.step_space() > 0; ++n) {
         board_.step_push(move_dir_, planner_.next_interval());
     }
 }

@@ -43,6 +43,7 @@ struct harness {
     // figures gathered by the modules
     uint64_t uart_rx_bytes, uart_tx_bytes, uart_rx_overruns, uart_rx_held_before_rxen;
     uint64_t uart_tx_first_cycle, uart_tx_last_cycle;
+    uint64_t uart_tx_longest_burst_bytes, uart_tx_longest_burst_cycles;  // back-to-back bytes
     uint64_t uart_cycles_per_byte_fixes;
     uint64_t twi_status_fixes, twi_transactions, twi_naks;
     uint64_t ads_conversions, cs_conversions, cs_words_read, cs_partial_reads;

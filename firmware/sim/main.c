@@ -12,8 +12,8 @@
 // also never runs ahead of wall time x FACTOR. Output the host has not read stalls
 // the AVR (back-pressure) until the host is gone. Stops on SIGINT/SIGTERM, when the
 // plant hangs up, when the firmware crashes, or after --max-seconds of device time;
-// then writes the JSON summary (summary.c) and exits 0, or 3 after a crash, 2 on a
-// usage or set-up error.
+// then writes the JSON summary (summary.c) and exits 0, or 3 after a crash, 4 when
+// the plant connection was lost, 2 on a usage or set-up error.
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,6 +26,7 @@
 
 #include "harness.h"
 #include "plant_link.h"
+#include "rig_map.h"
 #include "summary.h"
 
 static volatile sig_atomic_t g_stop = 0;
@@ -94,7 +95,7 @@ int main(int argc, char **argv) {
         return 2;
     }
     drive_attach(&H);
-    ads1115_attach(&H, 0x48);
+    ads1115_attach(&H, RIG_ADS1115_ADDRESS);
     cs5513_attach(&H, cs_conv_us);
     isr_timing_attach(&H);
 
@@ -111,6 +112,7 @@ int main(int argc, char **argv) {
     const char *reason = "stopped by signal";
     if (plant_wait_start(H.plant) < 0) {
         reason = "plant hung up before start";
+        strcpy(H.error, reason);
         g_stop = -1;
     }
 
@@ -165,5 +167,6 @@ int main(int argc, char **argv) {
     unlink(pty);
     if (crashed) fprintf(stderr, "tsa_simavr: firmware crashed at pc 0x%05x after %.6f s\n", H.avr->pc,
                          harness_time_s(&H));
-    return crashed ? 3 : 0;
+    if (crashed) return 3;
+    return H.error[0] ? 4 : 0;
 }

@@ -23,6 +23,9 @@
 #define RIG_HEATER_PORT 'B'
 #define RIG_HEATER_BIT 4
 
+// ADS1115 7-bit I2C address (ADDR pin to GND), as firmware/config.h ADS1115_ADDRESS.
+#define RIG_ADS1115_ADDRESS 0x48
+
 // Timer2 drives the heater gate (OC2A = PB4) in fast PWM.
 #define REG_PORTB 0x25
 #define REG_TCCR2A 0xB0

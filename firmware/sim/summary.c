@@ -52,9 +52,13 @@ int summary_write(const struct harness *h, const char *path, const char *elf, co
             (unsigned long long)d->dir_hold_violations, (unsigned long long)d->interlock_violations,
             (unsigned long long)h->uart_rx_overruns);
     const double tx_span_s = (double)(h->uart_tx_last_cycle - h->uart_tx_first_cycle) / HZ_CPU;
+    const double burst_s = (double)h->uart_tx_longest_burst_cycles / HZ_CPU;
+    const double burst_rate = burst_s > 0 ? (double)(h->uart_tx_longest_burst_bytes - 1) / burst_s : 0.0;
     fprintf(f, "  \"uart\": {\"rx_bytes\": %llu, \"tx_bytes\": %llu, \"tx_span_s\": %.6f,"
+               " \"tx_longest_burst_bytes\": %llu, \"tx_burst_bytes_per_s\": %.1f,"
                " \"held_before_rxen\": %llu, \"byte_time_fixes\": %llu},\n",
             (unsigned long long)h->uart_rx_bytes, (unsigned long long)h->uart_tx_bytes, tx_span_s,
+            (unsigned long long)h->uart_tx_longest_burst_bytes, burst_rate,
             (unsigned long long)h->uart_rx_held_before_rxen, (unsigned long long)h->uart_cycles_per_byte_fixes);
     fprintf(f, "  \"twi\": {\"transactions\": %llu, \"naks\": %llu, \"status_fixes\": %llu},\n",
             (unsigned long long)h->twi_transactions, (unsigned long long)h->twi_naks,

@@ -45,6 +45,7 @@ static struct {
     uint64_t last_rx_cycle;
     double last_rx_wall;
     int held_counted;
+    uint64_t burst_bytes, burst_start;
 } g;
 
 static double wall_s(void) {
@@ -103,8 +104,21 @@ static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
         g.tx = realloc(g.tx, g.tx_cap);
     }
     g.tx[g.tx_len++] = (uint8_t)value;
-    if (!h->uart_tx_bytes) h->uart_tx_first_cycle = h->avr->cycle;
-    h->uart_tx_last_cycle = h->avr->cycle;
+    const uint64_t now = h->avr->cycle;
+    // Bursts: bytes written to UDR0 no more than one frame time (+5 %) apart, i.e. the
+    // firmware kept the line busy. The longest burst's rate is the TX path's throughput.
+    if (h->uart_tx_bytes && now - h->uart_tx_last_cycle <= frame_cycles() * 21 / 20) {
+        g.burst_bytes++;
+    } else {
+        g.burst_bytes = 1;
+        g.burst_start = now;
+    }
+    if (g.burst_bytes > h->uart_tx_longest_burst_bytes) {
+        h->uart_tx_longest_burst_bytes = g.burst_bytes;
+        h->uart_tx_longest_burst_cycles = now - g.burst_start;
+    }
+    if (!h->uart_tx_bytes) h->uart_tx_first_cycle = now;
+    h->uart_tx_last_cycle = now;
     h->uart_tx_bytes++;
 }
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from tsa_bench.bench import load_bench
 from tsa_bench.protocol import msg
 
@@ -15,9 +17,10 @@ def firmware_constants(repo_root) -> dict[str, int]:
     return {name: int(value) for name, value in CONST.findall(text)}
 
 
-def test_config_h_matches_arduino_mega_yaml(repo_root):
+@pytest.mark.parametrize("bench_file", ["arduino-mega.yaml", "simavr.yaml"])
+def test_config_h_matches_the_firmware_bench_files(repo_root, bench_file):
     c = firmware_constants(repo_root)
-    bench = load_bench(repo_root / "configs" / "bench" / "arduino-mega.yaml")
+    bench = load_bench(repo_root / "configs" / "bench" / bench_file)
     spt = bench.steps_per_turn
     assert c["STEPS_PER_TURN"] == spt
     assert c["MIN_TWIST_STEPS"] == round(bench.limits.min_twist_turns * spt)

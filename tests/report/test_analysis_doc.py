@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 import os
 import re
@@ -59,8 +58,6 @@ def test_h5py_snippet(in_run_dir):
 
 
 def test_pandas_snippet(in_run_dir):
-    if importlib.util.find_spec("pandas") is None:
-        pytest.skip("pandas is not installed: the pandas snippet of docs/analysis.md is not executed")
     assert "resistance" in _exec(_blocks("python")["pandas"])
 
 

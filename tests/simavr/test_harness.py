@@ -1,0 +1,123 @@
+"""The simavr harness itself: wiring agrees with the firmware's pin map, steps and
+timing are watched, and it stops cleanly, reports crashes and a lost plant."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+import serial
+
+from tests import conformance_scenarios as sc
+from tests.simavr.conftest import SIMAVR_BENCH, simavr_port
+from tsa_bench.protocol import msg
+from tsa_bench.simavr import SimavrBench, SimavrSettings
+
+
+def test_rig_map_matches_the_firmware_pin_map(repo_root):
+    pins = dict((name, (port, int(bit))) for name, port, bit in re.findall(
+        r"X\((PIN_\w+), ([A-L]), (\d)\)", (repo_root / "firmware/hal/pins.h").read_text()))
+    rig = (repo_root / "firmware/sim/rig_map.h").read_text()
+    defs = dict(re.findall(r"#define (RIG_\w+) (\S+)", rig))
+    pairs = {"STEP": "PIN_MOTOR_STEP", "DIR": "PIN_MOTOR_DIR", "EN": "PIN_MOTOR_EN", "RES_CS": "PIN_RES_CS",
+             "RES_SCLK": "PIN_RES_SCLK", "RES_SDO": "PIN_RES_SDO", "ISRC_EN": "PIN_ISRC_EN",
+             "HEATER": "PIN_HEATER"}
+    for rig_name, pin in pairs.items():
+        assert (defs[f"RIG_{rig_name}_PORT"].strip("'"), int(defs[f"RIG_{rig_name}_BIT"])) == pins[pin], rig_name
+    config = (repo_root / "firmware/config.h").read_text()
+    assert int(defs["RIG_ADS1115_ADDRESS"], 16) == int(re.search(r"ADS1115_ADDRESS = (0x\w+)", config).group(1), 16)
+    supply_mV = int(re.search(r"HEATER_SUPPLY_MV = (\d+)", config).group(1))
+    assert SIMAVR_BENCH.simavr["heater_supply_V"] * 1000 == supply_mV
+    conversion_us = re.search(r"MAX_CONVERSION_US = 612UL \* 1000000UL / (\d+)UL",
+                              (repo_root / "firmware/drivers/cs5513.h").read_text())
+    assert SIMAVR_BENCH.simavr["cs5513_conversion_us"] == 612 * 1_000_000 // int(conversion_us.group(1))
+
+
+def test_moves_at_the_rate_limit_count_every_step_while_sampling(firmware_dir):
+    """5 turns/s (16,000 steps/s, the firmware's limit) there and back while SAMPLEs
+    stream at 20 ms: the A4988 sees every step with legal pulses, no slot is lost."""
+    with simavr_port(firmware_dir) as (port, bench):
+        ex = sc.Exchange(port, settle_s=0.05, first_reply_s=2.0)
+        sc.handshake(ex)
+        ex.send(msg.SetSampling(1, 20_000))
+        ex.send(msg.MoveTo(2, 16_000, 16_000, 320_000))
+        ex.send(msg.MoveTo(3, -8_000, 16_000, 320_000))
+        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.SEGMENT_DONE and m.segment == 3, 60)
+        ex.wait_device_s(0.1)
+    s = bench.summary
+    assert s["steps"]["total"] == 16_000 + 24_000 and s["steps"]["position"] == -8_000
+    assert s["steps"]["while_disabled"] == 0
+    assert all(v == 0 for v in s["violations"].values()), s["violations"]
+    assert s["steps"]["min_high_cycles"] >= 16 and s["steps"]["min_low_cycles"] >= 16   # >= 1 us at 16 MHz
+    assert ex.samples[-1].step_position == -8_000
+    assert all(b.counter == a.counter + 1 for a, b in zip(ex.samples, ex.samples[1:]))
+    assert any(m.motor_moving for m in ex.samples)
+    assert s["isr"]["17"]["name"] == "TIMER1_COMPA" and s["isr"]["17"]["count"] >= 40_000
+    assert s["twi"]["status_fixes"] > 0       # the simavr 1.6 SLA+W status quirk was met and handled
+
+
+def test_sigterm_stops_cleanly_with_a_summary(firmware_dir):
+    with simavr_port(firmware_dir) as (port, bench):
+        time.sleep(0.3)
+    assert bench.returncode == 0
+    assert bench.summary["stop_reason"] == "SIGTERM" and not bench.summary["crashed"]
+    assert bench.summary["device_time_s"] > 0 and bench.summary["resets"] == 0
+
+
+def test_a_lost_plant_stops_the_harness(firmware_dir):
+    with simavr_port(firmware_dir) as (port, bench):
+        ex = sc.Exchange(port, settle_s=0.05, first_reply_s=2.0)
+        sc.handshake(ex)
+        ex.send(msg.SetSampling(1, 20_000))
+        bench.plant.close()                  # the next conversion finds no plant
+        deadline = time.monotonic() + 20
+        while bench._proc.poll() is None and time.monotonic() < deadline:
+            try:
+                ex.send(msg.Heartbeat())
+            except serial.SerialException:   # the harness closed the pty on its way out
+                time.sleep(0.05)
+    assert bench.returncode == 4
+    assert "plant connection lost" in bench.summary["stop_reason"]
+
+
+def test_a_crashing_firmware_is_reported(firmware_dir, tmp_path):
+    """A program that runs off the end of flash: exit code 3, summary says crashed."""
+    src = tmp_path / "crash.c"
+    src.write_text("int main(void) { __asm__ volatile(\"jmp 0x3fffe\"); return 0; }\n")
+    build = tmp_path / "build"
+    build.mkdir()
+    subprocess.run(["avr-gcc", "-mmcu=atmega2560", "-Os", str(src), "-o", str(build / "tsa_bench.elf")], check=True)
+    (build / "tsa_simavr").symlink_to(firmware_dir / "build" / "tsa_simavr")
+    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=tmp_path, build=False)) as bench:
+        bench.start()
+        deadline = time.monotonic() + 20
+        while bench._proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+    assert bench.returncode == 3
+    assert bench.summary["crashed"] and bench.summary["stop_reason"] == "firmware crashed"
+    assert "crashed" in bench.stderr_text
+
+
+@pytest.mark.parametrize("args, message", [
+    ([], "--elf, --pty and --plant are required"),
+    (["--elf", "/nonexistent.elf", "--pty", "/tmp/x", "--plant", "/tmp/y"], "cannot read firmware ELF"),
+    (["--elf", "a", "--lead-ms"], "every option takes a value"),
+])
+def test_bad_arguments_are_refused_with_a_reason(firmware_dir, args, message):
+    result = subprocess.run([str(firmware_dir / "build" / "tsa_simavr"), *args], capture_output=True, text=True)
+    assert result.returncode == 2
+    assert message in result.stderr
+
+
+def test_summary_is_json_with_units_in_its_keys(firmware_dir):
+    with simavr_port(firmware_dir) as (port, bench):
+        pass
+    s = bench.summary
+    json.dumps(s)
+    assert {"cycles", "device_time_s", "wall_time_s", "steps", "violations", "uart", "twi", "adc",
+            "sample_interval", "isr"} <= set(s)
+    assert s["f_cpu_hz"] == 16_000_000 and Path(s["elf"]).name == "tsa_bench.elf"
