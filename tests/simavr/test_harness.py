@@ -121,3 +121,27 @@ def test_summary_is_json_with_units_in_its_keys(firmware_dir):
     assert {"cycles", "device_time_s", "wall_time_s", "steps", "violations", "uart", "twi", "adc",
             "sample_interval", "isr"} <= set(s)
     assert s["f_cpu_hz"] == 16_000_000 and Path(s["elf"]).name == "tsa_bench.elf"
+
+
+def test_sigterm_to_tsa_bench_run_aborts_and_stops_the_harness(repo_root, firmware_dir, tmp_path):
+    """SIGTERM to `tsa-bench run` on simavr: STOP sent, file closed "aborted", the
+    harness stopped with its summary printed."""
+    import signal
+    import sys
+
+    from tsa_bench.store.reader import read_run
+
+    out = tmp_path / "aborted.h5"
+    proc = subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", "run", "configs/protocols/twist-sweep-3ply.yaml",
+                             "--bench", "configs/bench/simavr.yaml", "--output", str(out)],
+                            cwd=repo_root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (out.exists() and out.stat().st_size > 20_000) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stdout[-2000:] + stderr[-2000:]
+    run = read_run(out)
+    assert run.exit_status == "aborted" and run.attrs["backend"] == "simavr" and len(run) > 0
+    assert "simavr " in stdout and "CRASHED" not in stdout
