@@ -17,7 +17,7 @@ import yaml
 from rich.console import Console
 from rich.table import Table
 
-from tsa_bench.models.fitting import FitError, evaluate, fit
+from tsa_bench.models.fitting import FitError, evaluate, fit, loads_g, quasi_static_mask
 from tsa_bench.models.manipulator import ManipulatorGeometry, bending_angle, simulate_p_control, velocity_models
 from tsa_bench.models.saved import MODEL_NAMES, ModelFileError, load_model_file, save_model
 from tsa_bench.models.tsa_kinematics import TWO_PI
@@ -65,16 +65,24 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 @click.option("--output", "output_col", default=None, help="Output column: length | resistance.")
 @click.option("--validate", "validate", multiple=True, help="Run file to validate on (repeatable).")
 @click.option("--levels", default=20, show_default=True, help="Preisach discretisation M.")
+@click.option("--load-g", "load_g", type=float, default=None,
+              help="preisach/polynomial: fit and score only the samples at this declared load (g).")
 @click.option("--out", "out", required=True, type=click.Path(dir_okay=False), help="Model JSON to write.")
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
-            validate: tuple[str, ...], levels: int, out: str) -> None:
+            validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
     train = _read(runs)
     val = _read(validate)
     try:
-        saved = fit(model, train, input_col, output_col, val, levels=levels)
+        saved = fit(model, train, input_col, output_col, val, levels=levels, load_g=load_g)
     except (FitError, ModelFileError) as exc:
         _fail(str(exc))
+    if load_g is None and model in ("preisach", "polynomial"):
+        for r in train:
+            loads = loads_g(r, quasi_static_mask(r, saved.input["column"]))
+            if len(loads) > 1:
+                click.echo(f"note: {r.path} holds samples at {len(loads)} loads ({', '.join(f'{g:g}' for g in loads)} g); "
+                           "one model was fitted across them. The thesis fits one per load: --load-g", err=True)
     save_model(saved, out)
     rows = [("identification", p, m) for p, m in saved.metrics["identification"].items()]
     rows += [("validation", p, m) for p, m in saved.metrics["validation"].items()]

@@ -93,3 +93,34 @@ def test_manipulator_command(repo_root) -> None:
     assert "steady-state error" in res.output
     res = CliRunner().invoke(main, ["manipulator", "nope.yaml"])
     assert res.exit_code == 2 and "nope.yaml: no such file" in res.output
+
+
+@pytest.fixture(scope="module")
+def three_load_run(tmp_path_factory, repo_root):
+    """The 3-ply twist sweep at 100, 150 and 200 g, recorded through `tsa-bench run`."""
+    out = tmp_path_factory.mktemp("loads") / "sweep3.h5"
+    res = CliRunner().invoke(main, ["run", str(repo_root / "configs/protocols/twist-sweep-3ply.yaml"),
+                                    "--bench", str(repo_root / "configs/bench/sim-3ply.yaml"), "--seed", "1",
+                                    "--output", str(out)])
+    assert res.exit_code == 0, res.output
+    return str(out)
+
+
+def test_fit_at_one_load(three_load_run, tmp_path) -> None:
+    mixed, one = tmp_path / "mixed.json", tmp_path / "one.json"
+    res = CliRunner().invoke(main, ["fit", "preisach", three_load_run, "--out", str(mixed)])
+    assert res.exit_code == 0, res.output
+    assert "3 loads (100, 150, 200 g)" in res.output and "--load-g" in res.output
+    res = CliRunner().invoke(main, ["fit", "preisach", three_load_run, "--load-g", "150", "--out", str(one)])
+    assert res.exit_code == 0, res.output
+    e_mixed = load_model_file(mixed).metrics["identification"][three_load_run]
+    e_one = load_model_file(one).metrics["identification"][three_load_run]
+    assert e_one["n"] * 2 < e_mixed["n"] < e_one["n"] * 4          # a third of the quasi-static samples
+    assert e_one["e_aver"] * 10 < e_mixed["e_aver"]                # one curve per load, as in the thesis
+    assert load_model_file(one).options["load_g"] == 150
+    res = CliRunner().invoke(main, ["predict", str(one), three_load_run])
+    assert res.exit_code == 0 and f" {e_one['n']} " in res.output      # scored at its own load only
+    res = CliRunner().invoke(main, ["fit", "polynomial", three_load_run, "--load-g", "120", "--out", str(one)])
+    assert res.exit_code != 0 and "no samples at a load of 120 g (loads: 100 g, 150 g, 200 g)" in res.output
+    res = CliRunner().invoke(main, ["fit", "self-sensing", three_load_run, "--load-g", "150", "--out", str(one)])
+    assert res.exit_code != 0 and "--load-g applies to preisach and polynomial" in res.output

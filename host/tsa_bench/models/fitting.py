@@ -9,7 +9,8 @@ Contract:
   one output column (length or resistance). They are fitted and scored on the
   quasi-static samples (:func:`quasi_static_mask`: motor stopped, last third of each
   segment; for heater_voltage input only at the twist where the heater was used),
-  the Preisach relays being driven by the whole input history of each run.
+  optionally only at one declared load (:func:`load_mask`), the Preisach relays being
+  driven by the whole input history of each run.
 * strain-resistance maps length -> resistance, self-sensing resistance (+ the
   motor-moving flag) -> length; both are fitted and scored on the hold samples
   (motor stopped after a move). Self-sensing first identifies the strain-resistance
@@ -74,6 +75,31 @@ def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
         heating_twist = turns[int(np.nanargmax(volts))]
         mask &= np.abs(turns - heating_twist) < 1e-6
     return mask
+
+
+G_N_PER_G = 9.80665e-3
+
+
+def load_mask(run: RunData, load_g: float | None) -> np.ndarray:
+    """Samples taken at the declared load ``load_g`` (within 0.5 g); all when None."""
+    if load_g is None:
+        return np.ones(len(run), bool)
+    if "load" not in run.samples:
+        raise FitError(f"{run.path}: no 'load' column to select {load_g:g} g by")
+    mask = np.abs(np.asarray(run.samples["load"], float) / G_N_PER_G - load_g) < 0.5
+    if not mask.any():
+        raise FitError(f"{run.path}: no samples at a load of {load_g:g} g (loads: {', '.join(f'{g:g} g' for g in loads_g(run))})")
+    return mask
+
+
+def loads_g(run: RunData, mask: np.ndarray | None = None) -> list[float]:
+    """The distinct declared loads (g, rounded to 0.1 g) among the (masked) samples."""
+    if "load" not in run.samples:
+        return []
+    load = np.asarray(run.samples["load"], float)
+    if mask is not None:
+        load = load[mask]
+    return sorted({round(float(v) / G_N_PER_G, 1) for v in load[np.isfinite(load)]})
 
 
 def series(run: RunData) -> RunSeries:
@@ -145,7 +171,7 @@ def from_saved(saved: SavedModel) -> Any:
 
 
 # -- fit and evaluate ------------------------------------------------------
-def _predict(obj: Any, run: RunData, io: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+def _predict(obj: Any, run: RunData, io: tuple[str, str], load_g: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(prediction at every sample, mask of the samples it is scored on)."""
     if isinstance(obj, (StrainResistanceModel, SelfSensingModel)):
         s = series(run)
@@ -161,14 +187,15 @@ def _predict(obj: Any, run: RunData, io: tuple[str, str]) -> tuple[np.ndarray, n
         pred[ok] = obj.predict(u[ok])
     else:
         pred[ok] = obj.predict(u[ok])
-    return pred, quasi_static_mask(run, io[0]) & ok
+    return pred, quasi_static_mask(run, io[0]) & ok & load_mask(run, load_g)
 
 
 def evaluate(saved: SavedModel, run: RunData, obj: Any | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-    """Prediction of ``run`` and its metrics (:class:`~tsa_bench.models.metrics.Metrics` as a dict)."""
+    """Prediction of ``run`` and its metrics (:class:`~tsa_bench.models.metrics.Metrics` as a dict),
+    scored at the model's training load when it was fitted at one (``options['load_g']``)."""
     io = (saved.input["column"], saved.output["column"])
     model = from_saved(saved) if obj is None else obj
-    pred, mask = _predict(model, run, io)
+    pred, mask = _predict(model, run, io, saved.options.get("load_g"))
     y = _column(run, io[1])
     if not (mask & np.isfinite(y)).any():
         raise FitError(f"{run.path}: no samples to score the {saved.model} model on")
@@ -176,11 +203,18 @@ def evaluate(saved: SavedModel, run: RunData, obj: Any | None = None) -> tuple[n
 
 
 def fit(model: str, runs: list[RunData], input_col: str | None = None, output_col: str | None = None,
-        validate: list[RunData] | None = None, levels: int = 20, order: int = 3) -> SavedModel:
-    """Identify ``model`` on ``runs``; score it on them and on ``validate`` (module docstring)."""
+        validate: list[RunData] | None = None, levels: int = 20, order: int = 3,
+        load_g: float | None = None) -> SavedModel:
+    """Identify ``model`` on ``runs``; score it on them and on ``validate`` (module docstring).
+
+    ``load_g`` (preisach, polynomial) fits and scores only the samples at that declared
+    load: the thesis fits one model per load, a run of several loads otherwise mixes curves.
+    """
     io = _check_io(model, input_col, output_col)
     if not runs:
         raise FitError("no training runs given")
+    if load_g is not None and model in FIXED_IO:
+        raise FitError(f"--load-g applies to preisach and polynomial; {model} is fitted on whole hold curves")
     units = (runs[0].units.get(io[0], ""), runs[0].units.get(io[1], ""))
     if model in FIXED_IO:
         ss = [series(r) for r in runs]
@@ -194,7 +228,7 @@ def fit(model: str, runs: list[RunData], input_col: str | None = None, output_co
         us, ys = [], []
         for r in runs:
             u, y = _column(r, io[0]), _column(r, io[1]).copy()
-            mask = quasi_static_mask(r, io[0])
+            mask = quasi_static_mask(r, io[0]) & load_mask(r, load_g)
             if not (mask & np.isfinite(y)).any():
                 raise FitError(f"{r.path}: no quasi-static samples of '{io[1]}' to fit")
             y[~mask] = np.nan
@@ -210,6 +244,8 @@ def fit(model: str, runs: list[RunData], input_col: str | None = None, output_co
             raise FitError(f"{', '.join(r.path for r in runs)}: {exc}") from None
     saved = _to_saved(model, obj, io, units)
     saved.options = {"levels": levels} if model == "preisach" else {"order": order} if model == "polynomial" else {}
+    if load_g is not None:
+        saved.options["load_g"] = load_g
     saved.training_files = [r.path for r in runs]
     for r in runs:
         saved.metrics["identification"][r.path] = evaluate(saved, r, obj)[1]
