@@ -145,3 +145,52 @@ def test_sigterm_to_tsa_bench_run_aborts_and_stops_the_harness(repo_root, firmwa
     run = read_run(out)
     assert run.exit_status == "aborted" and run.attrs["backend"] == "simavr" and len(run) > 0
     assert "simavr " in stdout and "CRASHED" not in stdout
+
+
+def _tiny_firmware(tmp_path, source: str, firmware_dir) -> Path:
+    """A firmware_dir holding a tiny AVR program as the ELF and the real harness."""
+    src = tmp_path / "tiny.c"
+    src.write_text(source)
+    build = tmp_path / "build"
+    build.mkdir()
+    subprocess.run(["avr-gcc", "-mmcu=atmega2560", "-O1", str(src), "-o", str(build / "tsa_bench.elf")], check=True)
+    (build / "tsa_simavr").symlink_to(firmware_dir / "build" / "tsa_simavr")
+    return tmp_path
+
+
+def test_the_uart_overrun_a_real_chip_would_show_is_counted(firmware_dir, tmp_path):
+    """A program that enables the receiver but never reads UDR0: of 10 bytes, 2 fit the
+    real 2-level receive buffer and 8 overrun (simavr's own 64-byte FIFO would hide them)."""
+    fw = _tiny_firmware(tmp_path, """#include <avr/io.h>
+int main(void) { UBRR0 = 7; UCSR0A = 1 << U2X0; UCSR0C = 3 << UCSZ00; UCSR0B = (1 << RXEN0) | (1 << TXEN0);
+  for (;;) {} }
+""", firmware_dir)
+    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False)) as bench:
+        port = serial.Serial(bench.port_path, 250000, timeout=0.02)
+        bench.start()
+        time.sleep(0.2)
+        port.write(bytes(range(10)))
+        time.sleep(0.5)
+        port.close()
+    assert bench.summary["uart"]["rx_bytes"] == 2
+    assert bench.summary["violations"]["uart_rx_overrun"] == 8
+
+
+def test_step_pulses_too_short_and_dir_too_late_are_violations(firmware_dir, tmp_path):
+    """STEP pulses of a few cycles (< 1 us) and DIR set one instruction before STEP rises
+    (< 200 ns) are what the A4988 would not take: counted, while the steps still count."""
+    fw = _tiny_firmware(tmp_path, """#include <avr/io.h>
+int main(void) {
+  DDRA = 0x07; PORTA = 0x00;                               /* /ENABLE low: driver on, DIR low */
+  for (volatile unsigned char i = 0; i < 10; ++i) { PORTA |= 1; PORTA &= ~1; }
+  PORTA |= 2; PORTA |= 1; PORTA &= ~1;                     /* DIR high right before STEP */
+  for (;;) {} }
+""", firmware_dir)
+    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False)) as bench:
+        bench.start()
+        time.sleep(0.5)
+    s = bench.summary
+    assert s["steps"]["total"] == 11 and s["steps"]["position"] == -10 + 1
+    assert s["violations"]["step_pulse_width"] >= 10
+    assert s["violations"]["dir_setup"] == 1
+    assert s["steps"]["min_high_cycles"] < 16
