@@ -117,6 +117,18 @@ def test_watch_without_anything_to_watch(tmp_path):
     assert res.exit_code == 2 and "no such run file" in res.output
 
 
+def test_messages_are_never_wrapped_however_long_the_path(tmp_path):
+    deep = tmp_path.joinpath(*(["a-folder-with-a-long-name"] * 8))
+    deep.mkdir(parents=True)
+    missing = deep / "no-such.h5"
+    for width in (20, 80, 400):
+        console = Console(width=width, force_terminal=False, record=True)
+        assert watch(missing, plain=True, console=console) == 2
+        text = console.export_text()
+        assert f"error: {missing}: no such run file and no live sidecar" in text, text
+        assert text.count("\n") == 1, text
+
+
 def test_live_table_shows_latest_values():
     state = WatchState(n_segments=7)
     rec = np.zeros(3, dtype=RECORD)

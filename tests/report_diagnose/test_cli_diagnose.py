@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 from diagnose_helpers import write_minimal_run
 
-from tsa_bench.cli_diagnose import diagnose
+from tsa_bench.cli.diagnose import diagnose
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

@@ -209,3 +209,20 @@ def test_an_existing_run_file_is_never_overwritten(tmp_path):
     result = CliRunner().invoke(main, ["run", str(PROTOCOLS / "lifetime.yaml"), "--output", str(existing)])
     assert result.exit_code == 2 and "already exists" in result.output
     assert existing.read_bytes() == b"recorded data"
+
+
+def test_cli_model_names_match_the_library():
+    from tsa_bench.cli.models import MODEL_NAMES as cli_names
+    from tsa_bench.models.saved import MODEL_NAMES as lib_names
+
+    assert tuple(cli_names) == tuple(lib_names)
+
+
+def test_help_and_version_load_no_numerics():
+    code = ("import sys; from tsa_bench.cli import main\n"
+            "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+            "heavy = sorted(m for m in ('numpy', 'scipy', 'matplotlib', 'h5py') if m in sys.modules)\n"
+            "print('HEAVY', heavy)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": str(ROOT / "host")})
+    assert "HEAVY []" in out.stdout, out.stdout + out.stderr

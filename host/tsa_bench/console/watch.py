@@ -146,7 +146,9 @@ def watch(run_path: str | Path, *, plain: bool = False, once: bool = False, inte
     """Follow ``run_path``; see the module contract."""
     run_path = Path(run_path)
     console = console or Console()
-    echo = console.print if not plain else (lambda s: console.print(s, markup=False, highlight=False))
+    def echo(text: str) -> None:  # a message is one line however narrow the terminal: never hard-wrapped
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
+
     try:
         tail = _open_tail(run_path, wait_s)
     except LiveFormatError as exc:

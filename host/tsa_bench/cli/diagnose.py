@@ -1,6 +1,4 @@
-"""`tsa-bench diagnose`: judge the simulation against measured runs (issue 5).
-
-Registered in :mod:`tsa_bench.cli` with ``main.add_command(diagnose)``.
+"""`tsa-bench diagnose`: judge the simulation against measured runs.
 
 Exit codes: 0 the diagnosis ran (whether or not a cause was found); 1 the engine
 failed unexpectedly; 2 bad input (a run file that breaks the contract, a bad model file,
@@ -15,7 +13,7 @@ from pathlib import Path
 
 import click
 
-EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
+from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED
 
 
 def _fail(message: str, code: int = EXIT_BAD_INPUT) -> None:

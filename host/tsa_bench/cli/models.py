@@ -1,4 +1,4 @@
-"""`tsa-bench fit | predict | manipulator`: the thesis's models on run files (docs/models.md).
+"""Model commands: `tsa-bench fit | predict | manipulator`: the thesis's models on run files (docs/models.md).
 
 Exit codes: 0 success; 2 bad input (missing or unreadable file, unknown model, run
 lacking a needed column, bad YAML), with one ``error: <file>: <what>`` line.
@@ -8,22 +8,18 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
-import h5py
-import numpy as np
-import yaml
-from rich.console import Console
-from rich.table import Table
 
-from tsa_bench.models.fitting import FitError, evaluate, fit, loads_g, quasi_static_mask
-from tsa_bench.models.manipulator import ManipulatorGeometry, bending_angle, simulate_p_control, velocity_models
-from tsa_bench.models.saved import MODEL_NAMES, ModelFileError, load_model_file, save_model
-from tsa_bench.models.tsa_kinematics import TWO_PI
-from tsa_bench.store.reader import RunFileError, read_run
+from tsa_bench.cli.exits import EXIT_BAD_INPUT
 
-EXIT_BAD_INPUT = 2
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.table import Table
+
+# The names of tsa_bench.models.saved.MODEL_NAMES, here so that --help does not import the models.
+MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing")
 
 
 def _fail(msg: str) -> None:
@@ -32,6 +28,8 @@ def _fail(msg: str) -> None:
 
 
 def _read(paths: tuple[str, ...] | list[str]):
+    from tsa_bench.store.reader import RunFileError, read_run
+
     out = []
     for p in paths:
         try:
@@ -43,11 +41,15 @@ def _read(paths: tuple[str, ...] | list[str]):
 
 def _console() -> Console:
     """A rich console; wide when not a terminal (pipes, tests) so no column is cut."""
+    from rich.console import Console
+
     console = Console()
     return console if console.is_terminal else Console(width=160)
 
 
 def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> Table:
+    from rich.table import Table
+
     table = Table(title=title)
     for col in ("set", "run", "n", "E_aver", "sigma", "max |e|", "mean % (3.21)", "max % (3.21)"):
         table.add_column(col, justify="right" if col not in ("set", "run") else "left")
@@ -71,6 +73,9 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
             validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
+    from tsa_bench.models.fitting import FitError, fit, loads_g, quasi_static_mask
+    from tsa_bench.models.saved import ModelFileError, save_model
+
     train = _read(runs)
     val = _read(validate)
     try:
@@ -97,6 +102,11 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
               help="Write the prediction into RUN as /samples/predicted_<output> (beside the measurement).")
 def predict_cmd(model_file: str, run: str, write_prediction: bool) -> None:
     """Print the metrics of MODEL_FILE on RUN; optionally store the prediction in the run file."""
+    import h5py
+
+    from tsa_bench.models.fitting import FitError, evaluate
+    from tsa_bench.models.saved import ModelFileError, load_model_file
+
     try:
         saved = load_model_file(model_file)
     except ModelFileError as exc:
@@ -122,6 +132,8 @@ def predict_cmd(model_file: str, run: str, write_prediction: bool) -> None:
 
 
 def _manipulator_config(path: str) -> dict[str, Any]:
+    import yaml
+
     p = Path(path)
     if not p.exists():
         _fail(f"{p}: no such file")
@@ -138,6 +150,13 @@ def _manipulator_config(path: str) -> dict[str, Any]:
 @click.argument("config", type=click.Path(dir_okay=False))
 def manipulator_cmd(config: str) -> None:
     """Bending angle, velocity models and P-control simulation of the soft manipulator (section 4.2)."""
+    import numpy as np
+    from rich.table import Table
+
+    from tsa_bench.models.manipulator import (ManipulatorGeometry, bending_angle, simulate_p_control,
+                                              velocity_models)
+    from tsa_bench.models.tsa_kinematics import TWO_PI
+
     doc = _manipulator_config(config)
     try:
         geom = ManipulatorGeometry(**{k: float(v) for k, v in doc["geometry"].items()})

@@ -1,8 +1,8 @@
-"""Command line for data hand-off: `tsa-bench report | watch | import | export`.
+"""Data commands: `tsa-bench info | report | watch | import | export`.
 
-Registered on the `tsa-bench` group at the bottom of cli.py. Exit codes as there:
-0 success; 1 a watched run ended without success or was killed; 2 bad input (run file,
-CSV, options), with a message naming the file and, for CSV, the line and column.
+Exit codes as in :mod:`tsa_bench.cli`: 0 success; 1 a watched run ended without success
+or was killed; 2 bad input (run file, CSV, options), with a message naming the file and,
+for CSV, the line and column.
 """
 
 from __future__ import annotations
@@ -11,7 +11,21 @@ import sys
 
 import click
 
-EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
+from tsa_bench.cli.exits import EXIT_BAD_INPUT
+
+
+@click.command()
+@click.argument("run_file", type=click.Path(dir_okay=False))
+def info(run_file: str) -> None:
+    """Print RUN_FILE's metadata, exit status, segment summary and sample statistics."""
+    from tsa_bench.console.summary import format_run_info
+    from tsa_bench.store.inspect import RunFileError, inspect_run
+
+    try:
+        click.echo(format_run_info(inspect_run(run_file)))
+    except RunFileError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
 
 
 @click.command()

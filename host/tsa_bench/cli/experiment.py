@@ -1,8 +1,6 @@
-"""Command line: `tsa-bench run | validate | info | sim-serve`.
+"""Experiment commands: `tsa-bench run | validate | sim-serve | effects`.
 
-Exit codes: 0 success; 1 the run failed or the device could not be reached;
-2 bad input (protocol, bench file, run file), nothing sent to any device;
-130 aborted by the user.
+Exit codes as in :mod:`tsa_bench.cli`.
 """
 
 from __future__ import annotations
@@ -15,12 +13,10 @@ import urllib.parse
 from pathlib import Path
 
 import click
-import serial
 
 from tsa_bench.bench import BenchConfig, BenchConfigError, load_bench
+from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_FAILED
 from tsa_bench.plan import PlanErrors, format_summary, load_plan
-
-EXIT_FAILED, EXIT_BAD_INPUT, EXIT_ABORTED = 1, 2, 130
 
 
 def _load_bench_or_exit(path: str | None) -> BenchConfig:
@@ -40,13 +36,7 @@ def _load_plan_or_exit(path: str, bench: BenchConfig):
         sys.exit(EXIT_BAD_INPUT)
 
 
-@click.group()
-@click.version_option(package_name="tsa-bench")
-def main() -> None:
-    """tsa-bench: bench acquisition for twisted string actuators."""
-
-
-@main.command()
+@click.command()
 @click.argument("protocol", type=click.Path(dir_okay=False))
 @click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
               help="Bench file (default: configs/bench/sim.yaml, the simulated bench).")
@@ -114,7 +104,7 @@ def _raise_interrupt(signum, frame):  # SIGTERM ends a run like Ctrl-C: STOP, fi
     raise KeyboardInterrupt
 
 
-@main.command()
+@click.command()
 @click.argument("protocol", type=click.Path(dir_okay=False))
 @click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
               help="Bench file (default: configs/bench/sim.yaml, the simulated bench).")
@@ -128,6 +118,8 @@ def _raise_interrupt(signum, frame):  # SIGTERM ends a run like Ctrl-C: STOP, fi
 def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
         speed: float | None, seed: int | None) -> None:
     """Run PROTOCOL on the bench and write one HDF5 run file."""
+    import serial
+
     from tsa_bench import transport  # noqa: F401  (registers the sim:// URL handler)
     from tsa_bench.console.progress import ProgressDisplay
     from tsa_bench.console.summary import format_run_info
@@ -213,21 +205,7 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
     sys.exit({"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED))
 
 
-@main.command()
-@click.argument("run_file", type=click.Path(dir_okay=False))
-def info(run_file: str) -> None:
-    """Print RUN_FILE's metadata, exit status, segment summary and sample statistics."""
-    from tsa_bench.console.summary import format_run_info
-    from tsa_bench.store.inspect import RunFileError, inspect_run
-
-    try:
-        click.echo(format_run_info(inspect_run(run_file)))
-    except RunFileError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
-
-
-@main.command()
+@click.command()
 @click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
               help="Also show which effects this simulated bench switches on and its values.")
 def effects(bench_path: str | None) -> None:
@@ -254,7 +232,7 @@ def effects(bench_path: str | None) -> None:
         click.echo("")
 
 
-@main.command("sim-serve")
+@click.command("sim-serve")
 @click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
               help="Bench file (default: configs/bench/sim.yaml).")
 @click.option("--speed", type=float, default=None, help="Real-time factor; default as fast as the client reads.")
@@ -276,16 +254,3 @@ def sim_serve(bench_path: str | None, speed: float | None, seed: int | None) -> 
     except KeyboardInterrupt:
         pass
 
-
-from tsa_bench.cli_diagnose import diagnose  # noqa: E402  (its own module: the command is large)
-
-main.add_command(diagnose)
-
-from tsa_bench.cli_data import export, import_cmd, report, watch  # noqa: E402  (its own module)
-from tsa_bench.cli_fit import fit_cmd, manipulator_cmd, predict_cmd  # noqa: E402  (its own module)
-
-for _command in (fit_cmd, predict_cmd, manipulator_cmd, report, watch, import_cmd, export):
-    main.add_command(_command)
-
-if __name__ == "__main__":
-    main()
