@@ -8,7 +8,7 @@ namespace cfg {
 
 // Firmware version reported in BOOT and IDENTITY.
 static const uint8_t FW_MAJOR = 0;
-static const uint8_t FW_MINOR = 1;
+static const uint8_t FW_MINOR = 2;
 static const uint8_t FW_PATCH = 0;
 
 // Serial: UART0 at 250000 baud with U2X (0 % error at 16 MHz).
@@ -33,8 +33,20 @@ static const uint8_t QUEUE_SLOTS = 16;
 static const uint16_t WATCHDOG_MS = 2000;
 // A half frame is dropped when the next byte takes longer than this.
 static const uint32_t FRAME_TIMEOUT_US = 20000UL;
-// Sampling period bounds (0 = off).
-static const uint32_t MIN_SAMPLE_PERIOD_US = 1000UL;
+// Sampling period bounds (0 = off): the shortest period at which every slot gets its
+// sample while the motor runs at MAX_RATE_STEPS_PER_S (measured in simavr by
+// scripts/bench/simavr_figures.py: an ADS1115 conversion at 860 SPS plus the I2C
+// traffic at 400 kHz take ~1.6 ms, the sampler starts the next one on the grid).
+static const uint32_t MIN_SAMPLE_PERIOD_US = 3000UL;
+
+// A latched fault holds the motor this long, then the motor is de-energized (position
+// unknown from then on), the sense current and sampling go off (EVENT motor_released).
+// 0 = never release.
+static const uint32_t FAULT_RELEASE_MS = 10000UL;
+// A controlled stop lets this many queued steps run before its deceleration starts
+// (they are already at the current speed; the main loop needs them to queue the
+// deceleration without a gap).
+static const uint8_t STOP_KEEP_STEPS = 2;
 
 // ADS1115 at I2C 0x48, single-ended AIN0, PGA +-6.144 V (config bits PGA = 000),
 // 860 samples/s (DR = 111): 187.5 uV/count, conversion ~1.2 ms.

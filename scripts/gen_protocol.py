@@ -46,6 +46,7 @@ ENUM_CLASS = {
     "boot_reason": ("BootReason", "IntEnum"),
     "adc_flags": ("AdcFlags", "IntFlag"),
     "device_flags": ("DeviceFlags", "IntFlag"),
+    "device_state": ("DeviceState", "IntFlag"),
 }
 
 

@@ -24,17 +24,19 @@ EXAMPLES = {
     "STOP": msg.Stop(),
     "CLEAR_QUEUE": msg.ClearQueue(),
     "SIM_SET_LOAD": msg.SimSetLoad(550_000),
+    "SET_POSITION": msg.SetPosition(-12_800),
     "MOVE_TO": msg.MoveTo(12, 80_000, 10_667, 160_000),
     "MOVE_BY": msg.MoveBy(13, -6_400, 10_667, 160_000),
     "DWELL": msg.Dwell(14, 180_000_000),
     "SET_HEATER": msg.SetHeater(15, 10_000),
     "SET_SAMPLING": msg.SetSampling(0, 100_000),
     "BOOT": msg.Boot(0, 1, 0, 2),
-    "IDENTITY": msg.Identity(1, 0, 1, 0, msg.CATALOGUE_HASH, 3200, -32_000, 320_000, 16_000, 320_000, 12_000, 16, 2000, 0),
+    "IDENTITY": msg.Identity(1, 0, 2, 0, msg.CATALOGUE_HASH, 3200, -32_000, 320_000, 16_000, 320_000, 12_000, 16, 2000,
+                             0, 3000, 10_000),
     "ACK": msg.Ack(0x1234, 0x10, 0, 15),
     "SAMPLE": msg.Sample(123_456, 9_000_000_000, 80_000, 21_345, -262_144, 4, 0, 1, 11_920),
     "EVENT": msg.Event(42_000_000, 3, 7, 1, 0),
-    "QUEUE_STATUS": msg.QueueStatus(1_000_000, 16, 0, 0, 0),
+    "QUEUE_STATUS": msg.QueueStatus(1_000_000, 16, 0, 0, 0, 1, -6_400, 2, 300, 1, 65_535),
 }
 
 

@@ -35,6 +35,7 @@ MAX_INSTRUCTION_IN_PROGRESS = 5
 ISRS = [  # (vector, avr-libc name, description)
     (17, "TIMER1_COMPA_vect", "step timer"),
     (25, "USART0_RX_vect", "UART0 RX"),
+    (13, "TIMER2_COMPA_vect", "heater PWM dither"),
 ]
 LIBC_HEADER = Path("/usr/lib/avr/include/avr/iomxx0_1.h")
 

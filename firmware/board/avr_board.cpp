@@ -18,13 +18,23 @@ namespace board {
 
 static_assert(fw::STEP_TICK_HZ * 8UL == F_CPU, "Timer1 runs at F_CPU / 8");
 
-AvrBoard::AvrBoard() : position_adc_(cfg::ADS1115_ADDRESS) {}
+AvrBoard::AvrBoard()
+    : position_adc_(cfg::ADS1115_ADDRESS), reason_(proto::boot_reason::POWER_ON), kept_(false), kept_steps_(0) {}
 
 void AvrBoard::init() {
     cli();
-    // Power stages off first: at reset every pin floats until here (external pull-ups
-    // on /ENABLE and pull-downs on the heater gate and source enable cover that time).
-    drv::a4988::init();
+    hal::quiesce();
+    // Why we reset, and whether the step position survived (before anything rewrites
+    // the record).
+    drv::ResetRecord& rec = hal::reset_record();
+    const bool intact = drv::reset_record_intact(rec);
+    reason_ = drv::boot_reason_from(hal::reset_flags(), intact, intact ? rec.cause : 0);
+    const bool held = hal::motor_enable_held_at_reset();
+    kept_ = drv::position_survives(reason_, rec, intact, held);
+    kept_steps_ = kept_ ? rec.position_steps : 0;
+    // Power stages first: at reset every pin floats until here (pull-downs on STEP, the
+    // heater gate and the source enable cover that time; /ENABLE, see above).
+    drv::a4988::init(held);
     drv::heater::init();
     drv::current_source::init();
     hal::gpio_output(hal::PIN_LED, false);
@@ -42,18 +52,26 @@ void AvrBoard::start_watchdog() { hal::watchdog_enable(); }
 uint64_t AvrBoard::now_us() { return hal::micros(); }
 
 int16_t AvrBoard::serial_read() { return hal::uart_read(); }
+int16_t AvrBoard::serial_peek(uint16_t offset) { return offset > 255 ? -1 : hal::uart_peek(static_cast<uint8_t>(offset)); }
+void AvrBoard::serial_skip(uint16_t n) { hal::uart_skip(static_cast<uint8_t>(n > 255 ? 255 : n)); }
 uint16_t AvrBoard::serial_tx_free() { return hal::uart_tx_free(); }
 uint16_t AvrBoard::serial_write(const uint8_t* data, uint16_t n) { return hal::uart_write(data, n); }
 
 void AvrBoard::motor_enable(bool on) { drv::a4988::enable(on); }
 uint8_t AvrBoard::step_space() { return hal::step_space(); }
-void AvrBoard::step_push(int8_t direction, uint32_t interval_ticks) { hal::step_push(direction, interval_ticks); }
+void AvrBoard::step_push(int8_t direction, uint32_t interval_ticks, bool last) {
+    hal::step_push(direction, interval_ticks, last);
+}
 bool AvrBoard::step_busy() { return hal::step_busy(); }
 int32_t AvrBoard::step_position() { return hal::step_position(); }
 void AvrBoard::step_set_position(int32_t steps) { hal::step_set_position(steps); }
 void AvrBoard::step_halt() { hal::step_halt(); }
+uint16_t AvrBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
+    return hal::step_truncate(keep, rest_position);
+}
+uint16_t AvrBoard::step_underruns() { return hal::step_underruns(); }
 
-void AvrBoard::heater_set_mV(uint16_t mV) { drv::heater::set_mV(mV); }
+uint16_t AvrBoard::heater_set_mV(uint16_t mV) { return drv::heater::set_mV(mV); }
 bool AvrBoard::sense_current(bool on) { return drv::current_source::set(on); }
 
 bool AvrBoard::position_start() { return position_adc_.start(); }
@@ -69,8 +87,21 @@ bool AvrBoard::resistance_start() {
 }
 int8_t AvrBoard::resistance_poll(int32_t& counts, uint8_t& flags) { return resistance_adc_.poll(counts, flags); }
 
-uint8_t AvrBoard::boot_reason() { return drv::boot_reason_from_mcusr(hal::reset_flags()); }
+uint8_t AvrBoard::boot_reason() { return reason_; }
 
 void AvrBoard::kick_hw_watchdog() { hal::watchdog_kick(); }
+
+bool AvrBoard::position_kept(int32_t& steps) {
+    steps = kept_steps_;
+    return kept_;
+}
+
+void AvrBoard::position_record(int32_t steps, bool valid) {
+    hal::reset_record_write(drv::CAUSE_RUNNING, steps, valid);
+}
+
+uint16_t AvrBoard::uart_overruns() { return hal::uart_rx_overruns(); }
+uint16_t AvrBoard::uart_frame_errors() { return hal::uart_frame_errors(); }
+uint16_t AvrBoard::i2c_recoveries() { return hal::twi_recoveries(); }
 
 }  // namespace board

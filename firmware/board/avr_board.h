@@ -1,12 +1,15 @@
 // AvrBoard: fw::Board on the Arduino Mega 2560 with hal/ and drivers/.
 //
-// Contract. init() brings up every peripheral in a safe order (motor disabled, heater
-// and sense current off before anything else, then clocks, UART, TWI, step timer) and
-// enables interrupts; it does not arm the watchdog (start_watchdog(), called once boot
-// output is queued, so a slow first boot cannot reset-loop). All Board methods are
-// called from the main loop only. Blocking exceptions to "a few microseconds": an
-// ADS1115 poll does up to two I2C exchanges (~60-100 us each at 400 kHz, bounded by
-// hal::TWI_TIMEOUT_US) and a ready CS5513 word costs ~60 us of bit-banging.
+// Contract. init() first quiesces every interrupt source (the watchdog ISR restarts
+// the application without a hardware reset), then brings up every peripheral in a safe
+// order (STEP low, the A4988 left energized if it stayed so through the reset, heater
+// and sense current off, then clocks, UART, TWI, step timer) and enables interrupts;
+// it decodes the reset cause and the position record (drivers/reset_cause.h). It does
+// not arm the watchdog (start_watchdog(), called once boot output is queued, so a slow
+// first boot cannot trip it). All Board methods are called from the main loop only.
+// Blocking exceptions to "a few microseconds": an ADS1115 poll does up to two I2C
+// exchanges (~60-100 us each at 400 kHz, bounded by hal::TWI_TIMEOUT_US), a ready
+// CS5513 word costs ~60 us of bit-banging, an I2C bus recovery ~100 us.
 #pragma once
 #include <stdint.h>
 
@@ -24,18 +27,22 @@ public:
 
     uint64_t now_us() override;
     int16_t serial_read() override;
+    int16_t serial_peek(uint16_t offset) override;
+    void serial_skip(uint16_t n) override;
     uint16_t serial_tx_free() override;
     uint16_t serial_write(const uint8_t* data, uint16_t n) override;
 
     void motor_enable(bool on) override;
     uint8_t step_space() override;
-    void step_push(int8_t direction, uint32_t interval_ticks) override;
+    void step_push(int8_t direction, uint32_t interval_ticks, bool last) override;
     bool step_busy() override;
     int32_t step_position() override;
     void step_set_position(int32_t steps) override;
     void step_halt() override;
+    uint16_t step_truncate(uint8_t keep, int32_t& rest_position) override;
+    uint16_t step_underruns() override;
 
-    void heater_set_mV(uint16_t mV) override;
+    uint16_t heater_set_mV(uint16_t mV) override;
     bool sense_current(bool on) override;
 
     bool position_start() override;
@@ -45,10 +52,18 @@ public:
 
     uint8_t boot_reason() override;
     void kick_hw_watchdog() override;
+    bool position_kept(int32_t& steps) override;
+    void position_record(int32_t steps, bool valid) override;
+    uint16_t uart_overruns() override;
+    uint16_t uart_frame_errors() override;
+    uint16_t i2c_recoveries() override;
 
 private:
     drv::Ads1115 position_adc_;
     drv::Cs5513 resistance_adc_;
+    uint8_t reason_;
+    bool kept_;
+    int32_t kept_steps_;
 };
 
 }  // namespace board

@@ -24,6 +24,11 @@ public:
     // --- serial (UART0, interrupt-driven rings on the AVR) ----------------------
     // Next received byte, or -1 when none is waiting.
     virtual int16_t serial_read() = 0;
+    // The byte `offset` places after the next unread one, left in place (-1: not there
+    // yet); serial_skip(n) drops the next n. The core uses them to find a STOP behind
+    // bytes it cannot handle yet.
+    virtual int16_t serial_peek(uint16_t offset) = 0;
+    virtual void serial_skip(uint16_t n) = 0;
     // Free space in the transmit ring, in bytes.
     virtual uint16_t serial_tx_free() = 0;
     // Queue bytes for transmission; the caller checks serial_tx_free() first and
@@ -35,22 +40,33 @@ public:
     // Free slots in the step-interval ring that the step ISR consumes.
     virtual uint8_t step_space() = 0;
     // Queue one step: direction (+1 or -1) and the interval from the previous step
-    // edge (or from now, for the first step of a move) in STEP_TICK_HZ ticks. The ISR
-    // sets DIR at least 200 ns before the STEP edge and keeps STEP high >= 1 us.
-    virtual void step_push(int8_t direction, uint32_t interval_ticks) = 0;
+    // edge (or from now, for the first step of a move) in STEP_TICK_HZ ticks. Steps
+    // queued while the generator runs keep its direction (moves never reverse without
+    // the generator going idle first). `last` = false promises more steps: if the
+    // ring runs dry before they come, the board counts a step underrun (the step train
+    // paused mid-move). The ISR sets DIR at least 200 ns before the STEP edge and keeps
+    // STEP high >= 1 us.
+    virtual void step_push(int8_t direction, uint32_t interval_ticks, bool last) = 0;
     // True while queued steps remain or a step pulse is in progress.
     virtual bool step_busy() = 0;
     // Signed count of steps executed by the ISR, read atomically.
     virtual int32_t step_position() = 0;
     // Set the step count (at boot or after a halt), atomically.
     virtual void step_set_position(int32_t steps) = 0;
-    // Drop every queued step at once (STOP, faults); the motor halts where it is.
+    // Drop every queued step at once (faults); the motor halts where it is.
     virtual void step_halt() = 0;
+    // Drop the queued steps but the pending edge and `keep` more (a controlled stop then
+    // queues its deceleration); returns how many were dropped and, in rest_position,
+    // where the motor is once the remaining ones have run.
+    virtual uint16_t step_truncate(uint8_t keep, int32_t& rest_position) = 0;
+    // Times the ring ran dry mid-move since boot (saturating).
+    virtual uint16_t step_underruns() = 0;
 
     // --- heater (Timer2 PWM on a MOSFET) and sense current (AD8276, 50 mA) ------
-    // Equivalent DC voltage; the heater driver sets duty (V / V_supply)^2 and, as an
-    // interlock, turns the sense current off whenever the heater is on.
-    virtual void heater_set_mV(uint16_t mV) = 0;
+    // Equivalent DC voltage; the heater driver sets duty (V / V_supply)^2 rounded to its
+    // duty steps and returns the equivalent voltage it actually applies (0 = off). As an
+    // interlock it turns the sense current off whenever the heater is on.
+    virtual uint16_t heater_set_mV(uint16_t mV) = 0;
     // Enable or disable the 50 mA sense current; refused (returns false) while the
     // heater is on.
     virtual bool sense_current(bool on) = 0;
@@ -73,6 +89,17 @@ public:
     virtual uint8_t boot_reason() = 0;
     // Feed the hardware watchdog (the AVR WDT catches a hung main loop).
     virtual void kick_hw_watchdog() = 0;
+    // The position record that survives resets (in .noinit on the AVR). At boot:
+    // true, with the position, when the record is intact, marked valid, and the motor
+    // stayed energized through the reset; false otherwise (power-on, reset mid-move,
+    // motor released). Afterwards the core keeps it current with position_record().
+    virtual bool position_kept(int32_t& steps) = 0;
+    virtual void position_record(int32_t steps, bool valid) = 0;
+    // Error counters since boot (saturating): UART bytes lost (receiver overrun or
+    // ring full), UART framing errors, I2C bus recoveries.
+    virtual uint16_t uart_overruns() = 0;
+    virtual uint16_t uart_frame_errors() = 0;
+    virtual uint16_t i2c_recoveries() = 0;
 
 protected:
     ~Board() {}

@@ -25,6 +25,8 @@ public:
     uint8_t count() const { return count_; }
     uint8_t free() const { return static_cast<uint8_t>(cfg::QUEUE_SLOTS - count_); }
     bool empty() const { return count_ == 0; }
+    // Whether a MOVE_TO or MOVE_BY waits in the queue.
+    bool has_move() const;
 
 private:
     QueuedCommand slots_[cfg::QUEUE_SLOTS];

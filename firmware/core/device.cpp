@@ -5,20 +5,28 @@
 
 namespace fw {
 
+static_assert(FrameWriter::SLOT_PAYLOAD >= proto::Identity::SIZE && FrameWriter::SLOT_PAYLOAD >= proto::QueueStatus::SIZE &&
+                  FrameWriter::SLOT_PAYLOAD >= proto::Event::SIZE,
+              "every urgent message fits an outbox slot");
+
 namespace {
-// Outbox room needed before a host frame is read: its ACK plus the most events one
+// Outbox room needed before a host frame is handled: its ACK plus the most events one
 // command causes (SEGMENT_STARTED, SEGMENT_DONE, QUEUE_EMPTY), plus a reserve for a
 // FAULT raised in the same poll.
 const uint8_t RX_ROOM = 6;
+// Outbox room needed to report a counter event (underrun, I2C recovery).
+const uint8_t COUNTER_ROOM = 8;
 }  // namespace
 
 Device::Device(Board& board)
     : board_(board), writer_(board), sim_load_(0), sim_ctx_(0), has_last_(false), last_seq_(0),
-      last_id_(0), duplicates_(0), last_host_us_(0), exec_(EXEC_NONE), starting_(false),
+      last_id_(0), duplicates_(0), last_host_us_(0), scan_offset_(0), stop_owed_(false), stop_seq_(0),
+      stops_found_(0), exec_(EXEC_NONE), starting_(false),
       segment_(NO_SEGMENT), projected_(0), move_target_(0), move_dir_(0), seg_t_us_(0), dwell_us_(0),
-      heater_mV_(0), fault_(0), period_us_(0), next_sample_us_(0), counter_(0), samples_missed_(0),
-      sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true), resistance_started_(false),
-      sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0) {
+      heater_mV_(0), fault_(0), fault_since_us_(0), stopping_(false), rest_steps_(0), position_known_(false),
+      motor_released_(false), underruns_seen_(0), recoveries_seen_(0), period_us_(0), next_sample_us_(0),
+      counter_(0), samples_missed_(0), sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true),
+      resistance_started_(false), sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0) {
     last_ack_ = proto::Ack();
     sample_ = proto::Sample();
 }
@@ -32,8 +40,14 @@ void Device::boot() {
     board_.heater_set_mV(0);
     board_.sense_current(false);
     board_.step_halt();
-    board_.step_set_position(0);
+    int32_t kept = 0;
+    position_known_ = board_.position_kept(kept);
+    board_.step_set_position(position_known_ ? kept : 0);
+    projected_ = board_.step_position();
+    board_.position_record(projected_, position_known_);
     board_.motor_enable(true);  // holding torque keeps the strings' twist under load
+    underruns_seen_ = board_.step_underruns();
+    recoveries_seen_ = board_.i2c_recoveries();
     last_host_us_ = board_.now_us();
     proto::Boot m;
     m.fw_major = cfg::FW_MAJOR;
@@ -53,32 +67,71 @@ void Device::poll() {
     check_safety(now);
     feed_steps();
     run_sampler(now);
+    report_counters(now);
     writer_.flush();
 }
 
+uint8_t Device::state() const {
+    uint8_t s = 0;
+    if (!position_known_) s |= proto::device_state::POSITION_UNKNOWN;
+    if (motor_released_) s |= proto::device_state::MOTOR_RELEASED;
+    if (stopping_) s |= proto::device_state::STOPPING;
+    return s;
+}
+
 void Device::read_serial(uint64_t now) {
+    if (writer_.outbox_free() < RX_ROOM) {
+        scan_for_stop(now);
+        return;
+    }
+    if (stop_owed_) {
+        stop_owed_ = false;
+        send_ack(writer_.reserve(), stop_seq_, proto::Stop::ID, proto::status::OK);
+        send_event_value(now, proto::event_kind::STOPPED, 0, rest_steps_);
+    }
+    scan_offset_ = 0;
+    scanner_.reset();
     for (uint8_t n = 0; n < RX_BUDGET; ++n) {
         if (writer_.outbox_free() < RX_ROOM) return;
         int16_t c = board_.serial_read();
         if (c < 0) return;
         if (parser_.feed(static_cast<uint8_t>(c), now)) {
             last_host_us_ = now;
-            handle_frame(now);
+            handle_frame(now, parser_.msg_id(), parser_.seq(), parser_.payload(), parser_.payload_len());
         }
     }
 }
 
-void Device::handle_frame(uint64_t now) {
-    const uint8_t id = parser_.msg_id();
-    const uint16_t seq = parser_.seq();
-    const uint8_t* p = parser_.payload();
+// The outbox is full, so host bytes wait in the RX ring; a STOP among them must not
+// wait. The scanner parses them in place, picking up where it left off.
+void Device::scan_for_stop(uint64_t now) {
+    for (uint8_t n = 0; n < RX_BUDGET; ++n) {
+        const int16_t c = board_.serial_peek(scan_offset_);
+        if (c < 0) return;
+        ++scan_offset_;
+        if (!scanner_.feed(static_cast<uint8_t>(c), now)) continue;
+        if (scanner_.msg_id() != proto::Stop::ID || scanner_.payload_len() != 0) continue;
+        stop_seq_ = scanner_.seq();
+        stop_owed_ = true;
+        board_.serial_skip(scan_offset_);  // what came before the STOP never runs
+        parser_.reset();
+        scanner_.reset();
+        scan_offset_ = 0;
+        last_host_us_ = now;
+        ++stops_found_;
+        controlled_stop();
+        return;
+    }
+}
+
+void Device::handle_frame(uint64_t now, uint8_t id, uint16_t seq, const uint8_t* p, uint8_t len) {
     const bool known = id < 0x80 && proto::payload_size(id) >= 0 &&
                        (id != proto::SimSetLoad::ID || sim_load_ != 0);
     if (!known) {
         send_ack(writer_.reserve(), seq, id, proto::status::UNKNOWN_MESSAGE);
         return;
     }
-    if (parser_.payload_len() != proto::payload_size(id)) {
+    if (len != proto::payload_size(id)) {
         send_ack(writer_.reserve(), seq, id, proto::status::BAD_LENGTH);
         return;
     }
@@ -129,15 +182,26 @@ void Device::handle_hello() {
     m.queue_slots = cfg::QUEUE_SLOTS;
     m.watchdog_ms = cfg::WATCHDOG_MS;
     m.flags = sim_load_ ? proto::device_flags::SIMULATED : 0;
+    m.min_sample_period_us = cfg::MIN_SAMPLE_PERIOD_US;
+    m.fault_release_ms = cfg::FAULT_RELEASE_MS;
     uint8_t buf[proto::Identity::SIZE];
     writer_.send(proto::Identity::ID, buf, proto::pack(m, buf));
 }
 
 // Same order as the simulated device: BAD_STATE, BAD_ARGUMENT, LIMIT_EXCEEDED, QUEUE_FULL.
 uint8_t Device::check(uint8_t id, const uint8_t* p) const {
+    if (id == proto::SetPosition::ID) {
+        if (exec_ == EXEC_MOVE || stopping_ || queue_.has_move() || motor_released_) return proto::status::BAD_STATE;
+        proto::SetPosition m;
+        proto::unpack(p, m);
+        if (m.position_steps < cfg::MIN_TWIST_STEPS || m.position_steps > cfg::MAX_TWIST_STEPS)
+            return proto::status::LIMIT_EXCEEDED;
+        return proto::status::OK;
+    }
     if (!proto::is_queued(id)) return proto::status::OK;
     if (fault_) return proto::status::BAD_STATE;
     if (id == proto::MoveTo::ID || id == proto::MoveBy::ID) {
+        if (!position_known_) return proto::status::BAD_STATE;
         proto::MoveTo m;  // MOVE_BY has the same layout (delta in target_steps)
         proto::unpack(p, m);
         if (m.rate_steps_per_s == 0 || m.accel_steps_per_s2 == 0) return proto::status::BAD_ARGUMENT;
@@ -165,14 +229,18 @@ void Device::apply(uint8_t id, const uint8_t* p, uint64_t now) {
         send_queue_status(now);
         return;
     case proto::Stop::ID:
-        halt();
-        send_event(now, proto::event_kind::STOPPED, 0);
+        controlled_stop();
+        send_event_value(now, proto::event_kind::STOPPED, 0, rest_steps_);
         return;
     case proto::ClearQueue::ID:
         clear_queue();
         if (fault_) {
             uint8_t code = fault_;
             fault_ = 0;
+            if (motor_released_) {
+                board_.motor_enable(true);
+                motor_released_ = false;
+            }
             send_event(now, proto::event_kind::FAULT_CLEARED, code);
         }
         return;
@@ -180,6 +248,12 @@ void Device::apply(uint8_t id, const uint8_t* p, uint64_t now) {
         proto::SimSetLoad m;
         proto::unpack(p, m);
         if (sim_load_) sim_load_(sim_ctx_, m.load_mg);
+        return;
+    }
+    case proto::SetPosition::ID: {
+        proto::SetPosition m;
+        proto::unpack(p, m);
+        set_position(m.position_steps);
         return;
     }
     default:
@@ -241,19 +315,44 @@ void Device::send_queue_status(uint64_t now) {
     m.executing = exec_ != EXEC_NONE ? 1 : 0;
     m.segment = segment_;
     m.fault = fault_;
+    m.state = state();
+    m.step_position = board_.step_position();
+    m.step_underruns = board_.step_underruns();
+    m.uart_overruns = board_.uart_overruns();
+    m.uart_frame_errors = board_.uart_frame_errors();
+    m.i2c_recoveries = board_.i2c_recoveries();
     uint8_t buf[proto::QueueStatus::SIZE];
     writer_.send(proto::QueueStatus::ID, buf, proto::pack(m, buf));
 }
 
 void Device::send_event(uint64_t t_us, uint8_t kind, uint16_t code) {
+    send_event_value(t_us, kind, code, board_.step_position());
+}
+
+void Device::send_event_value(uint64_t t_us, uint8_t kind, uint16_t code, int32_t value) {
     proto::Event m;
     m.t_us = t_us;
     m.kind = kind;
     m.segment = segment_;
     m.code = code;
-    m.value = board_.step_position();
+    m.value = value;
     uint8_t buf[proto::Event::SIZE];
     writer_.send(proto::Event::ID, buf, proto::pack(m, buf));
+}
+
+// Counters the board keeps (step underruns, I2C recoveries) become EVENTs when they move.
+void Device::report_counters(uint64_t now) {
+    if (writer_.outbox_free() < COUNTER_ROOM) return;
+    const uint16_t underruns = board_.step_underruns();
+    if (underruns != underruns_seen_) {
+        underruns_seen_ = underruns;
+        send_event(now, proto::event_kind::STEP_UNDERRUN, underruns);
+    }
+    const uint16_t recoveries = board_.i2c_recoveries();
+    if (recoveries != recoveries_seen_) {
+        recoveries_seen_ = recoveries;
+        send_event(now, proto::event_kind::I2C_RECOVERED, recoveries);
+    }
 }
 
 }  // namespace fw

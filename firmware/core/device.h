@@ -2,10 +2,25 @@
 // safety logic, on top of a Board. Behaves as host/tsa_bench/sim/device.py (the
 // protocol's executable specification) except where real hardware differs: the end of
 // a move is stamped when the core sees the last step done (poll granularity), not at
-// the closed-form end; a SAMPLE leaves when its conversions finish (stamped with its
-// grid time), and grid slots that pass while a conversion is still running are skipped
-// with their counter values (a visible gap); SIM_SET_LOAD is an unknown message unless
-// set_sim_load_handler() was called; sensor failures only flag the sample.
+// the closed-form end; a SAMPLE is stamped with the time its position conversion
+// actually started and leaves when its conversions finish; grid slots that pass while
+// a conversion is still running are skipped with their counter values (a visible gap);
+// SIM_SET_LOAD is an unknown message unless set_sim_load_handler() was called; sensor
+// failures only flag the sample.
+//
+// Position. The step position is known only after SET_POSITION or when it survived a
+// reset (Board::position_kept); until then MOVE_TO/MOVE_BY are refused (bad_state) and
+// QUEUE_STATUS says position_unknown. A move marks the persisted record invalid while
+// it runs, so a reset mid-move leaves the position unknown.
+//
+// Stopping. STOP and the host watchdog stop the motor under control: the queued steps
+// beyond cfg::STOP_KEEP_STEPS are dropped and replaced by a deceleration at
+// cfg::MAX_ACCEL_STEPS_PER_S2 (StepPlanner::stop); EVENT stopped (or fault) carries the
+// position the motor comes to rest at, and nothing new starts before it is there. The
+// twist-limit guard halts at once (a planner bug) and makes the position unknown. A
+// fault that stays latched for cfg::FAULT_RELEASE_MS releases the motor (position
+// unknown), turns sampling and the sense current off (EVENT motor_released);
+// CLEAR_QUEUE re-energizes it.
 //
 // Contract. boot() once, then poll() forever from the main loop; poll() never blocks
 // (it reads at most RX_BUDGET bytes, pushes step intervals while the board's step ring
@@ -15,7 +30,11 @@
 // serial ISRs touch lives behind the Board, which reads it atomically.
 // Backpressure instead of loss: host bytes are left in the RX ring while the outbox
 // lacks room for a command's replies, and the executor waits for room before starting
-// a segment, so ACKs and EVENTs are never dropped. Only SAMPLEs can be dropped.
+// a segment, so ACKs and EVENTs are never dropped; only SAMPLEs can be. Meanwhile a
+// second parser scans the waiting bytes (without consuming them) for a STOP: found, it
+// acts at once, the bytes up to it are dropped (commands sent before a STOP must not
+// run after it; they get no ACK), and its ACK and EVENT stopped follow when there is
+// room.
 #pragma once
 #include <stdint.h>
 
@@ -48,16 +67,23 @@ public:
 
     uint8_t fault() const { return fault_; }
     bool executing() const { return exec_ != EXEC_NONE; }
-    bool active() const { return exec_ != EXEC_NONE || !queue_.empty() || heater_mV_ > 0; }
+    bool stopping() const { return stopping_; }
+    bool position_known() const { return position_known_; }
+    bool motor_released() const { return motor_released_; }
+    bool active() const {
+        return exec_ != EXEC_NONE || !queue_.empty() || heater_mV_ > 0 || period_us_ > 0 || stopping_;
+    }
     uint8_t queue_free() const { return queue_.free(); }
     uint16_t heater_mV() const { return heater_mV_; }
     uint16_t segment() const { return segment_; }
     int32_t projected_steps() const { return projected_; }
     uint32_t sampling_period_us() const { return period_us_; }
+    uint8_t state() const;
     const FrameErrors& frame_errors() const { return parser_.errors(); }
     uint32_t duplicates() const { return duplicates_; }
     uint32_t samples_dropped() const { return writer_.dropped() + samples_missed_; }
     uint32_t urgent_lost() const { return writer_.urgent_lost(); }
+    uint32_t stops_found_waiting() const { return stops_found_; }
 
 private:
     enum Exec { EXEC_NONE, EXEC_MOVE, EXEC_DWELL };
@@ -65,13 +91,16 @@ private:
 
     // device.cpp: frames and commands
     void read_serial(uint64_t now);
-    void handle_frame(uint64_t now);
+    void scan_for_stop(uint64_t now);
+    void handle_frame(uint64_t now, uint8_t id, uint16_t seq, const uint8_t* p, uint8_t len);
     void handle_hello();
     uint8_t check(uint8_t id, const uint8_t* p) const;
     void apply(uint8_t id, const uint8_t* p, uint64_t now);
     void send_ack(uint8_t slot, uint16_t seq, uint8_t id, uint8_t status);
     void send_queue_status(uint64_t now);
     void send_event(uint64_t t_us, uint8_t kind, uint16_t code);
+    void send_event_value(uint64_t t_us, uint8_t kind, uint16_t code, int32_t value);
+    void report_counters(uint64_t now);
 
     // device_exec.cpp: queue, segments, motion, safety
     void push(const QueuedCommand& c, uint64_t now);
@@ -80,10 +109,13 @@ private:
     bool begin(const QueuedCommand& c);
     void finish_segment(uint64_t t_us);
     void feed_steps();
-    void halt();
+    void controlled_stop();
+    void halt_now();
     void clear_queue();
-    void trip(uint8_t code, uint64_t now);
+    void trip(uint8_t code, uint64_t now, bool controlled);
+    void release_motor(uint64_t now);
     void set_heater(uint16_t mV);
+    void set_position(int32_t steps);
     void check_safety(uint64_t now);
 
     // device_sample.cpp: the sampling grid and the conversions
@@ -111,6 +143,13 @@ private:
     uint32_t duplicates_;
     uint64_t last_host_us_;
 
+    // STOP while the outbox is full: a second parser over the bytes still waiting
+    FrameParser scanner_;
+    uint16_t scan_offset_;   // bytes past the next unread one the scanner has seen
+    bool stop_owed_;         // a STOP acted on; its ACK and EVENT wait for room
+    uint16_t stop_seq_;
+    uint32_t stops_found_;
+
     // executor
     Exec exec_;
     bool starting_;         // idle with segments (or QUEUE_EMPTY) still to start/report
@@ -120,8 +159,15 @@ private:
     int8_t move_dir_;
     uint64_t seg_t_us_;     // when the current segment started (or the last one ended)
     uint32_t dwell_us_;
-    uint16_t heater_mV_;
+    uint16_t heater_mV_;    // equivalent voltage applied (after the PWM's rounding)
     uint8_t fault_;
+    uint64_t fault_since_us_;
+    bool stopping_;         // a controlled stop's deceleration is still running
+    int32_t rest_steps_;    // where the motor comes to rest after a controlled stop
+    bool position_known_;
+    bool motor_released_;
+    uint16_t underruns_seen_;
+    uint16_t recoveries_seen_;
 
     // sampler
     uint32_t period_us_;

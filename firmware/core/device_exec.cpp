@@ -18,7 +18,7 @@ void Device::push(const QueuedCommand& c, uint64_t now) {
         projected_ += c.steps;
     }
     if (exec_ == EXEC_NONE) {
-        if (!starting_) seg_t_us_ = now;
+        if (!starting_) seg_t_us_ = now;  // after a stop: reset when the motor is at rest
         starting_ = true;
         start_segments();
     }
@@ -27,9 +27,9 @@ void Device::push(const QueuedCommand& c, uint64_t now) {
 // Starts queued segments in order at seg_t_us_: instantaneous ones (SET_HEATER,
 // SET_SAMPLING, zero moves and dwells) end at once, the first lasting one stays
 // executing; QUEUE_EMPTY when the queue runs dry. Waits (starting_ stays set) while
-// the outbox lacks room for the events.
+// the outbox lacks room for the events or a controlled stop is still decelerating.
 void Device::start_segments() {
-    while (starting_ && writer_.outbox_free() >= SEGMENT_ROOM) {
+    while (starting_ && !stopping_ && writer_.outbox_free() >= SEGMENT_ROOM) {
         QueuedCommand c;
         if (!queue_.pop(c)) {
             starting_ = false;
@@ -57,6 +57,7 @@ bool Device::begin(const QueuedCommand& c) {
         move_dir_ = target > start ? 1 : -1;
         uint32_t distance = target > start ? static_cast<uint32_t>(target - start)
                                            : static_cast<uint32_t>(start - target);
+        board_.position_record(start, false);  // a reset mid-move leaves it unknown
         planner_.begin(distance, c.value, c.accel);
         exec_ = EXEC_MOVE;
         feed_steps();
@@ -77,10 +78,21 @@ bool Device::begin(const QueuedCommand& c) {
 }
 
 void Device::run_executor(uint64_t now) {
+    if (stopping_) {
+        feed_steps();
+        if (planner_.finished() && !board_.step_busy()) {
+            stopping_ = false;
+            board_.position_record(board_.step_position(), position_known_);
+            if (starting_) seg_t_us_ = now;
+        }
+    }
     if (writer_.outbox_free() >= SEGMENT_ROOM) {
         if (exec_ == EXEC_MOVE) {
             feed_steps();
-            if (planner_.finished() && !board_.step_busy()) finish_segment(now);
+            if (planner_.finished() && !board_.step_busy()) {
+                board_.position_record(board_.step_position(), position_known_);
+                finish_segment(now);
+            }
         } else if (exec_ == EXEC_DWELL && now - seg_t_us_ >= dwell_us_) {
             // Timed from the scheduled start, so consecutive dwells never drift.
             finish_segment(seg_t_us_ + dwell_us_);
@@ -97,54 +109,110 @@ void Device::finish_segment(uint64_t t_us) {
 }
 
 void Device::feed_steps() {
-    if (exec_ != EXEC_MOVE) return;
-    // Bounded: near the top rate a ramp step costs about as much CPU as it lasts, the
-    // ring never fills and an unbounded loop would starve the sampler and the serial
-    // port for a whole deceleration (found in simavr: a lost sample slot at 16,000
-    // steps/s). poll() calls this twice per pass.
+    if (exec_ != EXEC_MOVE && !stopping_) return;
+    // Bounded, so a long ramp never starves the sampler and the serial port; poll()
+    // calls this twice per pass, and the board's ring holds ~16 ms of steps at the top
+    // rate. The interval of a step costs no division (StepPlanner).
     for (uint8_t n = 0; n < FEED_STEPS_PER_CALL && !planner_.finished() && board_.step_space() > 0; ++n) {
-        board_.step_push(move_dir_, planner_.next_interval());
+        const uint32_t interval = planner_.next_interval();
+        board_.step_push(move_dir_, interval, planner_.finished());
     }
 }
 
-void Device::halt() {
+// STOP and the host watchdog: queue cleared, heater off, the running move (if any)
+// decelerates at the device's limit; rest_steps_ is where the motor ends up.
+void Device::controlled_stop() {
+    queue_.clear();
+    starting_ = false;
+    set_heater(0);
+    if (exec_ == EXEC_MOVE) {
+        int32_t rest = 0;
+        const uint16_t dropped = board_.step_truncate(cfg::STOP_KEEP_STEPS, rest);
+        planner_.rewind(dropped);
+        const uint32_t left = planner_.stop(cfg::MAX_ACCEL_STEPS_PER_S2);
+        rest_steps_ = rest + (move_dir_ > 0 ? static_cast<int32_t>(left) : -static_cast<int32_t>(left));
+        stopping_ = true;
+        exec_ = EXEC_NONE;
+        feed_steps();
+    } else if (!stopping_) {
+        exec_ = EXEC_NONE;
+        rest_steps_ = board_.step_position();
+    }
+    projected_ = rest_steps_;
+}
+
+// Instant halt (a planner or driver bug): steps may be lost at speed, so a move cut
+// short leaves the position unknown.
+void Device::halt_now() {
+    const bool was_moving = exec_ == EXEC_MOVE || stopping_;
     board_.step_halt();
     planner_.abort();
     exec_ = EXEC_NONE;
+    stopping_ = false;
     starting_ = false;
     queue_.clear();
     set_heater(0);
-    projected_ = board_.step_position();
+    rest_steps_ = projected_ = board_.step_position();
+    if (was_moving) position_known_ = false;
+    board_.position_record(rest_steps_, position_known_);
 }
 
 void Device::clear_queue() {
     queue_.clear();
-    projected_ = exec_ == EXEC_MOVE ? move_target_ : board_.step_position();
+    projected_ = exec_ == EXEC_MOVE ? move_target_ : (stopping_ ? rest_steps_ : board_.step_position());
 }
 
-void Device::trip(uint8_t code, uint64_t now) {
-    halt();
+void Device::trip(uint8_t code, uint64_t now, bool controlled) {
+    if (controlled) {
+        controlled_stop();
+    } else {
+        halt_now();
+    }
     fault_ = code;
-    send_event(now, proto::event_kind::FAULT, code);
+    fault_since_us_ = now;
+    send_event_value(now, proto::event_kind::FAULT, code, rest_steps_);
+}
+
+// A fault outlasted cfg::FAULT_RELEASE_MS: de-energize the motor (the strings may turn
+// it: position unknown), stop sampling and the sense current.
+void Device::release_motor(uint64_t now) {
+    board_.motor_enable(false);
+    motor_released_ = true;
+    position_known_ = false;
+    board_.position_record(board_.step_position(), false);
+    period_us_ = 0;
+    abort_resistance();
+    sense_off();
+    send_event(now, proto::event_kind::MOTOR_RELEASED, fault_);
 }
 
 void Device::set_heater(uint16_t mV) {
     // Never rely on the driver's interlock alone: the sense current goes off first.
     if (mV > 0) abort_resistance();
-    board_.heater_set_mV(mV);
-    heater_mV_ = mV;
+    heater_mV_ = board_.heater_set_mV(mV);
+}
+
+void Device::set_position(int32_t steps) {
+    board_.step_set_position(steps);
+    position_known_ = true;
+    projected_ = rest_steps_ = steps;
+    board_.position_record(steps, true);
 }
 
 void Device::check_safety(uint64_t now) {
-    if (exec_ == EXEC_MOVE) {
+    if (exec_ == EXEC_MOVE || stopping_) {
         // Unreachable with validated targets; guards against a planner or driver bug.
         int32_t pos = board_.step_position();
         if ((move_dir_ > 0 && pos > cfg::MAX_TWIST_STEPS) || (move_dir_ < 0 && pos < cfg::MIN_TWIST_STEPS)) {
-            trip(proto::fault::TWIST_LIMIT, now);
+            trip(proto::fault::TWIST_LIMIT, now, false);
         }
     }
-    if (active() && now - last_host_us_ >= static_cast<uint64_t>(cfg::WATCHDOG_MS) * 1000U) {
-        trip(proto::fault::WATCHDOG, now);
+    if (!fault_ && active() && now - last_host_us_ >= static_cast<uint64_t>(cfg::WATCHDOG_MS) * 1000U) {
+        trip(proto::fault::WATCHDOG, now, true);
+    }
+    if (fault_ && !motor_released_ && !stopping_ && cfg::FAULT_RELEASE_MS > 0 &&
+        now - fault_since_us_ >= static_cast<uint64_t>(cfg::FAULT_RELEASE_MS) * 1000U) {
+        release_motor(now);
     }
     if (heater_mV_ > 0 && sense_on_) abort_resistance();
 }

@@ -1,8 +1,9 @@
 // Device, part 3: the sampler (see device.h).
 //
 // Samples sit on a grid anchored where SET_SAMPLING ran, the first one period later;
-// each SAMPLE carries its scheduled grid time, and the state (step position, moving,
-// segment, heater) at the moment its conversions started. Conversions are polled, never
+// each SAMPLE carries the time its position conversion actually started (the ADS1115
+// starts converting when the config write completes; t_us is read right after it),
+// and the state (step position, moving, segment, heater voltage applied) at that moment. Conversions are polled, never
 // waited for. The 50 mA sense current stays on between samples while sampling runs and
 // the heater is off (so only the first conversion after enabling it waits
 // cfg::RESISTANCE_SETTLE_US); it goes off before the heater comes on, aborting a
@@ -49,18 +50,18 @@ void Device::run_sampler(uint64_t now) {
 
 void Device::start_sample(uint64_t now) {
     sample_.counter = counter_++;
-    sample_.t_us = next_sample_us_;
     next_sample_us_ += period_us_;
+    position_done_ = !board_.position_start();
+    sample_.t_us = board_.now_us();
     sample_.step_position = board_.step_position();
     sample_.position_raw = 0;
     sample_.resistance_raw = 0;
     sample_.adc_flags = 0;
     sample_.heater_mV = heater_mV_;
-    sample_.motor_moving = exec_ == EXEC_MOVE ? 1 : 0;
+    sample_.motor_moving = (exec_ == EXEC_MOVE || stopping_) ? 1 : 0;
     sample_.segment = segment_;
     sample_start_us_ = now;
     sampler_ = SAMPLER_BUSY;
-    position_done_ = !board_.position_start();
     if (position_done_) sample_.adc_flags |= proto::adc_flags::POSITION_INVALID;
     resistance_done_ = false;
     resistance_started_ = false;

@@ -1,50 +1,65 @@
 #include "planner.h"
 
 #include "board.h"
+#include "flash.h"
+#include "isqrt.h"
 
 namespace fw {
 
 namespace {
 
-// (sqrt(k+1) - sqrt(k)) * 65536, k = 0..7.
-const uint32_t RAMP_TABLE_Q16[8] = {65536, 27146, 20830, 17560, 15471, 13987, 12862, 11972};
-const uint32_t TABLE_SIZE = 8;
-const uint32_t NONE = 0xFFFFFFFFUL;
-const uint32_t M_LOW = 1UL << 29;
-const uint32_t M_HIGH = 1UL << 30;
+#include "ramp_tables.inc"
+
 const uint32_t F_Q8 = STEP_TICK_HZ << 8;  // 2e6 * 256 < 2^32
+// 256 f sqrt(2), times 2 (see c0_q8).
+const uint32_t C0_NUM_X2 = 1448154688UL;
+const uint16_t INV_SQRT2_Q16 = 46341;
+const uint32_t TABLE_K = 256;
+const uint32_t NONE = 0xFFFFFFFFUL;
 
-// (a * b) >> 16 for b <= 65536, without 64-bit multiplies.
-uint32_t mul_q16(uint32_t a, uint32_t b) {
+// (a * b) >> 16 for b < 65536, without 64-bit multiplies.
+uint32_t mul_q16(uint32_t a, uint16_t b) {
     return (a >> 16) * b + (((a & 0xFFFFUL) * b) >> 16);
-}
-
-// sqrt(n) in 16.16 fixed point.
-uint64_t sqrt_q16(uint32_t n) {
-    return isqrt64(static_cast<uint64_t>(n) << 32);
 }
 
 }  // namespace
 
-uint32_t isqrt64(uint64_t x) {
-    uint64_t result = 0;
-    uint64_t bit = static_cast<uint64_t>(1) << 62;
-    while (bit > x) bit >>= 2;
-    while (bit != 0) {
-        if (x >= result + bit) {
-            x -= result + bit;
-            result = (result >> 1) + bit;
-        } else {
-            result >>= 1;
-        }
-        bit >>= 2;
+uint32_t StepPlanner::c0_q8(uint32_t accel) {
+    if (accel == 0) accel = 1;
+    // sqrt(a) = isqrt(a 4^s) / 2^s with a 4^s in [2^28, 2^30): 15 significant bits.
+    uint32_t n = accel;
+    uint8_t s = 0;
+    while (n < (1UL << 28)) {
+        n <<= 2;
+        ++s;
     }
-    return static_cast<uint32_t>(result);
+    const uint32_t r = isqrt32(n);
+    // c0 = 256 f sqrt(2) 2^s / r = ((2 * 256 f sqrt(2)) / r) 2^s / 2, exact to ~1e-5.
+    uint32_t q = C0_NUM_X2 / r;
+    return (q << s) >> 1;
 }
 
+namespace {
+// c0 / (sqrt(p) + sqrt(q)) for p >= 1, p >= q, p < 2^30: both roots of p 4^s and q 4^s
+// (>= 2^28), so each has 14+ significant bits, then one 32-bit division.
+uint32_t c0_over_root_sum(uint32_t c0_q8, uint32_t p, uint32_t q) {
+    uint8_t s = 0;
+    while (s < 14 && (p << 2) < (1UL << 30) && p < (1UL << 28)) {
+        p <<= 2;
+        q <<= 2;
+        ++s;
+    }
+    const uint32_t sum = isqrt32(p) + isqrt32(q);  // (sqrt(p) + sqrt(q)) 2^s
+    uint32_t inv = (1UL << (16 + s)) / sum;        // 2^16 / (sqrt(p) + sqrt(q))
+    if (inv > 65535UL) inv = 65535UL;
+    return mul_q16(c0_q8, static_cast<uint16_t>(inv));
+}
+}  // namespace
+
 StepPlanner::StepPlanner()
-    : total_(0), index_(0), remaining_(0), cruise_q8_(256), c0_q8_(256), cross_k_(NONE), special_q8_(256),
-      ramp_k_(0), ramp_m_(M_LOW), ramp_e_(0), carry_q8_(0) {}
+    : total_(0), index_(0), remaining_(0), cruise_q8_(256), c0_q8_(256), cross_k_(NONE), special_q8_(0),
+      stopping_(false),
+      stop_c0_q8_(256), stop_floor_q8_(0), carry_q8_(0) {}
 
 void StepPlanner::begin(uint32_t steps, uint32_t rate, uint32_t accel) {
     if (rate == 0) rate = 1;
@@ -52,100 +67,120 @@ void StepPlanner::begin(uint32_t steps, uint32_t rate, uint32_t accel) {
     total_ = remaining_ = steps;
     index_ = 0;
     carry_q8_ = 0;
+    stopping_ = false;
     cruise_q8_ = F_Q8 / rate;
     if (cruise_q8_ < 256) cruise_q8_ = 256;
-    // c0 * 256 = sqrt(2 f^2 2^16 / a); 2 * (2e6)^2 * 2^16 < 2^63.
-    const uint64_t f = STEP_TICK_HZ;
-    c0_q8_ = isqrt64((2 * f * f << 16) / accel);
-    if (c0_q8_ < 256) c0_q8_ = 256;
-    set_ramp_table(0);
+    c0_q8_ = c0_q8(accel);
     cross_k_ = NONE;
     special_q8_ = 0;
-    const uint64_t v = rate;
-    if (static_cast<uint64_t>(steps) * accel > v * v) {
-        // Trapezoid: the ramp reaches the rate at s_a = v^2 / 2a; the step ending at
-        // position n = floor(s_a) + 1 leaves the ramp, at t = n/v + v/(2a).
-        uint32_t x = static_cast<uint32_t>(v * v / (2 * static_cast<uint64_t>(accel)));
-        uint64_t t_end = static_cast<uint64_t>(F_Q8) * (x + 1) / rate +
-                         static_cast<uint64_t>(F_Q8) * rate / (2 * static_cast<uint64_t>(accel));
-        uint64_t t_start = (static_cast<uint64_t>(c0_q8_) * sqrt_q16(x)) >> 16;
+    if (steps == 0) return;
+    const uint32_t v = rate > 65535UL ? 65535UL : rate;
+    const uint32_t two_a = accel > 0x7FFFFFFFUL ? 0xFFFFFFFEUL : 2 * accel;
+    const uint32_t v2 = v * v;
+    const uint32_t x = v2 / two_a;  // the ramp reaches the rate at s_a = x + f steps
+    if (steps > v2 / accel) {  // steps a > v^2: the rate is reached
+        // Trapezoid. The step from position x to x + 1 leaves the ramp: it lasts
+        // (1 - f) / v + c0 f / (sqrt(x + f) + sqrt(x)), f = (v^2 mod 2a) / 2a.
+        const uint32_t rem = v2 % two_a;
+        const uint32_t g = two_a > (1UL << 20) ? rem / (two_a >> 12) : (rem << 12) / two_a;  // f in 1/4096
+        uint32_t t = mul_q16(cruise_q8_, static_cast<uint16_t>((4096 - g) << 4));
+        if (g > 0) {
+            uint32_t ramp_part;
+            if (x < (1UL << 18)) {
+                // c0 (g/4096) / (sqrt(x + g/4096) + sqrt(x)) = c0 (g/64) / (sqrt(4096x + g) + sqrt(4096x))
+                ramp_part = mul_q16(c0_over_root_sum(c0_q8_, 4096 * x + g, 4096 * x), static_cast<uint16_t>(g << 4))
+                            << 6;
+            } else {
+                ramp_part = mul_q16(ramp_q8(c0_q8_, x), static_cast<uint16_t>(g << 4));
+            }
+            t += ramp_part;
+        }
         cross_k_ = x;
-        special_q8_ = t_end > t_start ? static_cast<uint32_t>(t_end - t_start) : cruise_q8_;
+        special_q8_ = t;
         // When that step is also the middle one it holds both ramp ends: 2 T - 1/v.
-        if (steps == 2 * x + 1) special_q8_ = 2 * special_q8_ - cruise_q8_;
+        if (steps == 2 * x + 1) special_q8_ = 2 * t > cruise_q8_ ? 2 * t - cruise_q8_ : cruise_q8_;
     } else if (steps & 1) {
-        // Odd triangle: the middle step straddles the peak at t = sqrt(steps / a);
-        // it lasts c0 (sqrt(2 steps) - 2 sqrt(m)), m = (steps - 1) / 2.
-        uint64_t two_sqrt_m = 2 * sqrt_q16((steps - 1) / 2);
-        uint64_t s = sqrt_q16(2 * steps) - two_sqrt_m;
-        special_q8_ = static_cast<uint32_t>((static_cast<uint64_t>(c0_q8_) * s) >> 16);
+        // Odd triangle: the middle step m straddles the peak; it lasts
+        // c0 (sqrt(4m + 2) - sqrt(4m)) = 2 c0 / (sqrt(4m + 2) + sqrt(4m)).
+        const uint32_t m = (steps - 1) / 2;
+        special_q8_ = m < (1UL << 27) ? 2 * c0_over_root_sum(c0_q8_, 4 * m + 2, 4 * m) : ramp_q8(c0_q8_, m);
     }
 }
 
-void StepPlanner::set_ramp_table(uint32_t k) {
-    ramp_k_ = k;
-    ramp_m_ = mul_q16(c0_q8_, RAMP_TABLE_Q16[k]);
-    ramp_e_ = 0;
-    while (ramp_m_ < M_LOW) {
-        ramp_m_ <<= 1;
-        ++ramp_e_;
+uint32_t StepPlanner::ramp_q8(uint32_t c0, uint32_t k) const {
+    if (k == 0) return c0;
+    if (k < TABLE_K) {
+        const uint16_t mant = flash_u16(&RAMP_MANT[k]);
+        return mul_q16(c0, mant) >> flash_u8(&RAMP_SHIFT[k]);
     }
+    // R(k) = rsqrt(x) / sqrt(2), x = 2k + 1 = m 4^e with m in [1, 4).
+    const uint32_t x = 2 * k + 1;
+    uint8_t e = 0;
+    while (e < 15 && (x >> (2 * e + 2)) != 0) ++e;
+    const uint32_t m_q14 = 2 * e >= 14 ? x >> (2 * e - 14) : x << (14 - 2 * e);
+    const uint16_t idx = static_cast<uint16_t>((m_q14 >> 8) - 64);
+    const uint8_t frac = static_cast<uint8_t>(m_q14 & 0xFF);
+    const uint16_t lo = flash_u16(&RSQRT_Q16[idx]);
+    const uint16_t hi = flash_u16(&RSQRT_Q16[idx + 1]);
+    const uint16_t rs = static_cast<uint16_t>(lo - ((static_cast<uint32_t>(lo - hi) * frac) >> 8));
+    return mul_q16(mul_q16(c0, INV_SQRT2_Q16), rs) >> e;
 }
 
-void StepPlanner::move_ramp_to(uint32_t k) {
-    while (ramp_k_ < k) {
-        if (ramp_k_ + 1 < TABLE_SIZE) {
-            set_ramp_table(ramp_k_ + 1);
-            continue;
-        }
-        ++ramp_k_;
-        ramp_m_ -= 2 * ramp_m_ / (4 * ramp_k_ + 1);
-        if (ramp_m_ < M_LOW) {
-            ramp_m_ <<= 1;
-            ++ramp_e_;
-        }
+uint32_t StepPlanner::interval_q8(uint32_t index) const {
+    uint32_t k = index;
+    const uint32_t mirror = total_ - 1 - index;
+    if (mirror < k) k = mirror;
+    uint32_t q8;
+    if (cross_k_ != NONE) {
+        if (k > cross_k_) return cruise_q8_;
+        q8 = k == cross_k_ ? special_q8_ : ramp_q8(c0_q8_, k);
+    } else if (special_q8_ != 0 && index == total_ / 2) {
+        q8 = special_q8_;
+    } else {
+        q8 = ramp_q8(c0_q8_, k);
     }
-    while (ramp_k_ > k) {
-        if (ramp_k_ - 1 < TABLE_SIZE) {
-            set_ramp_table(ramp_k_ - 1);
-            continue;
-        }
-        ramp_m_ += 2 * ramp_m_ / (4 * ramp_k_ - 1);
-        --ramp_k_;
-        if (ramp_m_ >= M_HIGH) {
-            ramp_m_ >>= 1;
-            --ramp_e_;
-        }
-    }
+    return q8 < cruise_q8_ ? cruise_q8_ : q8;
 }
 
 uint32_t StepPlanner::next_interval() {
     if (remaining_ == 0) return 0;
-    uint32_t k = index_;
-    uint32_t mirror = total_ - 1 - index_;
-    if (mirror < k) k = mirror;
     uint32_t q8;
-    if (cross_k_ != NONE) {
-        if (k > cross_k_) {
-            q8 = cruise_q8_;
-        } else if (k == cross_k_) {
-            q8 = special_q8_;
-        } else {
-            move_ramp_to(k);
-            q8 = ramp_q8();
-        }
-    } else if (special_q8_ != 0 && index_ == total_ / 2) {
-        q8 = special_q8_;
+    if (stopping_) {
+        q8 = ramp_q8(stop_c0_q8_, remaining_ - 1);
+        if (q8 < stop_floor_q8_) q8 = stop_floor_q8_;
     } else {
-        move_ramp_to(k);
-        q8 = ramp_q8();
+        q8 = interval_q8(index_);
     }
-    if (q8 < cruise_q8_) q8 = cruise_q8_;
-    uint32_t sum = q8 + carry_q8_;
+    const uint32_t sum = q8 + carry_q8_;
     carry_q8_ = static_cast<uint8_t>(sum & 0xFF);
     ++index_;
     --remaining_;
     return sum >> 8;
+}
+
+void StepPlanner::rewind(uint32_t steps) {
+    if (steps > index_) steps = index_;
+    index_ -= steps;
+    remaining_ += steps;
+}
+
+uint32_t StepPlanner::stop(uint32_t a_max) {
+    if (remaining_ == 0 || stopping_) return remaining_;
+    if (index_ == 0) {  // not started: nothing moves
+        remaining_ = 0;
+        return 0;
+    }
+    if (a_max == 0) a_max = 1;
+    const uint32_t last_q8 = interval_q8(index_ - 1);
+    // v = f / interval; n = v^2 / 2 a_max, all within 32 bits (v <= 50000 steps/s).
+    const uint32_t v = F_Q8 / (last_q8 < 256 ? 256 : last_q8);
+    const uint32_t n = v * v / (2 * a_max);
+    if (n >= remaining_) return remaining_;  // the planned deceleration ends sooner
+    stopping_ = true;
+    stop_c0_q8_ = c0_q8(a_max);
+    stop_floor_q8_ = last_q8;
+    remaining_ = n;
+    return n;
 }
 
 }  // namespace fw

@@ -1,27 +1,34 @@
-// StepPlanner: trapezoidal (or triangular) step timing for one move, in integer math.
+// StepPlanner: trapezoidal (or triangular) step timing for one move, in integer math,
+// with no division per step.
+//
 // Contract: begin(steps, rate, accel) plans exactly `steps` steps; next_interval()
 // returns, step by step, the time from the previous step edge (from the start, for the
 // first) in STEP_TICK_HZ ticks, until finished(). rate and accel are clamped to >= 1
-// (the Device validates them against cfg first).
+// (the Device validates them against cfg first). begin() costs one 32-bit square root
+// and two 32-bit divisions (~0.1 ms on the AVR); next_interval() costs a few 16x16
+// multiplies, table reads and shifts (no division), so the main loop keeps up with the
+// step ISR at the top rate with time to spare.
 //
-// Method: every step lands where the closed-form trapezoid (host motion/trapezoid.py)
-// crosses that position. Step i (0-based) is timed by k = min(i, steps-1-i), its
-// distance from the nearer end, so the profile is symmetric by construction. On the
-// ramps the interval is ramp(k) = c0 (sqrt(k+1) - sqrt(k)), c0 = f sqrt(2/a): from a
-// table for k < 8, then by D. Austin's recurrence ramp(k) = ramp(k-1) (4k-1)/(4k+1)
-// (error < 3e-4 per step there, < 0.1 % summed), run backwards while decelerating: one
-// 32-bit division per ramp step, none while cruising. ramp() is kept as a normalised
-// 30-bit mantissa and a shift, so long slow ramps keep full precision. The one step that
-// crosses from ramp to cruise, and the middle step of an odd triangular move, get their
-// exact closed-form interval, computed once per move (a few 64-bit operations and
-// square roots, about a millisecond on the AVR). Times carry their fraction of a tick
-// (24.8 fixed point) from step to step, so rounding never accumulates.
+// Method: step i (0-based) is timed by k = min(i, steps-1-i), its distance from the
+// nearer end, so the profile is symmetric by construction. On the ramps the interval is
+// c0 R(k), R(k) = sqrt(k+1) - sqrt(k), c0 = f sqrt(2/a): the ramp steps then land
+// exactly where constant acceleration puts them (the sum telescopes to c0 sqrt(n)).
+// R(k) comes from a flash table for k < 256 and, beyond, from R(k) = 1/(2 sqrt(k+1/2))
+// (relative error < 5e-7) with 1/sqrt interpolated in a 193-entry table after scaling
+// by powers of 4 (error < 3e-5). The one step that crosses from ramp to cruise, and
+// the middle step of an odd triangular move, get their closed-form interval, computed
+// once in begin() as c0 n / (sqrt(P) + sqrt(Q)) with 32-bit square roots (no 64-bit
+// arithmetic). Times carry their fraction of a tick (24.8 fixed point) from step to
+// step, so rounding never accumulates.
+//
+// Controlled stop: after the step generator dropped `rewind` queued steps (STOP), stop()
+// turns what is left into a deceleration at a_max from the speed of the last step
+// kept: n = v^2 / (2 a_max) steps, never faster than that step, or, when the move
+// would end sooner anyway, the rest of the move as planned. It returns the steps left.
 #pragma once
 #include <stdint.h>
 
 namespace fw {
-
-uint32_t isqrt64(uint64_t x);
 
 class StepPlanner {
 public:
@@ -32,11 +39,18 @@ public:
     uint32_t remaining() const { return remaining_; }
     // Call only while !finished().
     uint32_t next_interval();
+    // Give back the last `steps` intervals handed out (they were never executed).
+    void rewind(uint32_t steps);
+    // Turn the rest into a stop at a_max (see above); returns the steps left to go.
+    uint32_t stop(uint32_t a_max_steps_per_s2);
+    // Interval of step `index` of the planned move (before any stop), in 1/256 tick.
+    uint32_t interval_q8(uint32_t index) const;
+
+    // c0 = f sqrt(2/a) in 1/256 tick (f = STEP_TICK_HZ), for a >= 1.
+    static uint32_t c0_q8(uint32_t accel_steps_per_s2);
 
 private:
-    void set_ramp_table(uint32_t k);
-    void move_ramp_to(uint32_t k);
-    uint32_t ramp_q8() const { return ramp_m_ >> ramp_e_; }
+    uint32_t ramp_q8(uint32_t c0, uint32_t k) const;
 
     uint32_t total_;
     uint32_t index_;
@@ -44,10 +58,10 @@ private:
     uint32_t cruise_q8_;
     uint32_t c0_q8_;
     uint32_t cross_k_;      // k of the ramp-to-cruise step (trapezoid), else 0xFFFFFFFF
-    uint32_t special_q8_;   // that step's interval, or the odd triangle's middle one
-    uint32_t ramp_k_;       // the mantissa below holds ramp(ramp_k_)
-    uint32_t ramp_m_;       // ramp(k) in q8 == ramp_m_ >> ramp_e_, ramp_m_ in [2^29, 2^30)
-    uint8_t ramp_e_;
+    uint32_t special_q8_;   // that step's interval, or the odd triangle's middle one (0: none)
+    bool stopping_;
+    uint32_t stop_c0_q8_;   // c0 at a_max while stopping
+    uint32_t stop_floor_q8_;  // no stop interval shorter than the last step kept
     uint8_t carry_q8_;      // fraction of a tick carried to the next interval
 };
 

@@ -8,7 +8,7 @@
 namespace proto {
 
 static const uint8_t PROTOCOL_VERSION = 1;
-static const uint32_t CATALOGUE_HASH = 0x3E6FFD3DUL;
+static const uint32_t CATALOGUE_HASH = 0x4F006524UL;
 static const uint8_t MAX_PAYLOAD = 64;
 
 template <typename T> inline T get_le(const uint8_t* p) {
@@ -38,6 +38,9 @@ static const uint8_t LIMIT_HIT = 4;
 static const uint8_t STOPPED = 5;
 static const uint8_t QUEUE_EMPTY = 6;
 static const uint8_t FAULT_CLEARED = 7;
+static const uint8_t STEP_UNDERRUN = 8;
+static const uint8_t I2C_RECOVERED = 9;
+static const uint8_t MOTOR_RELEASED = 10;
 }  // namespace event_kind
 
 namespace fault {
@@ -67,12 +70,19 @@ namespace device_flags {
 static const uint8_t SIMULATED = 1;
 }  // namespace device_flags
 
+namespace device_state {
+static const uint8_t POSITION_UNKNOWN = 1;
+static const uint8_t MOTOR_RELEASED = 2;
+static const uint8_t STOPPING = 4;
+}  // namespace device_state
+
 namespace id {
 static const uint8_t HELLO = 0x01;
 static const uint8_t HEARTBEAT = 0x02;
 static const uint8_t STOP = 0x03;
 static const uint8_t CLEAR_QUEUE = 0x04;
 static const uint8_t SIM_SET_LOAD = 0x05;
+static const uint8_t SET_POSITION = 0x06;
 static const uint8_t MOVE_TO = 0x10;
 static const uint8_t MOVE_BY = 0x11;
 static const uint8_t DWELL = 0x12;
@@ -114,7 +124,7 @@ inline uint8_t pack(const Heartbeat& m, uint8_t* p) { (void)p; (void)m;
     return 0;
 }
 
-// STOP (0x03, host -> device): Immediate stop, bypassing the queue - motor halts, heater off, queue cleared (a latched fault stays).
+// STOP (0x03, host -> device): Stop now, bypassing the queue - heater off, queue cleared (a latched fault stays); the motor decelerates at max_accel_steps_per_s2 (at once when slow) and EVENT stopped carries the position it comes to rest at. Acted on even while the device's output is backed up.
 struct Stop {
     static const uint8_t ID = 0x03;
     static const uint8_t SIZE = 0;
@@ -147,6 +157,20 @@ inline void unpack(const uint8_t* p, SimSetLoad& m) {
 }
 inline uint8_t pack(const SimSetLoad& m, uint8_t* p) { 
     put_le<uint32_t>(p + 0, static_cast<uint32_t>(m.load_mg));
+    return 4;
+}
+
+// SET_POSITION (0x06, host -> device): Declare the motor's present position (the twist zero is where the strings hang untwisted); makes an unknown position known. Refused with bad_state while a move runs, is queued or the motor is stopping, limit_exceeded outside the twist limits.
+struct SetPosition {
+    static const uint8_t ID = 0x06;
+    static const uint8_t SIZE = 4;
+    int32_t position_steps;  // the motor's present position [step]
+};
+inline void unpack(const uint8_t* p, SetPosition& m) { 
+    m.position_steps = static_cast<int32_t>(get_le<uint32_t>(p + 0));
+}
+inline uint8_t pack(const SetPosition& m, uint8_t* p) { 
+    put_le<uint32_t>(p + 0, static_cast<uint32_t>(m.position_steps));
     return 4;
 }
 
@@ -213,7 +237,7 @@ inline uint8_t pack(const Dwell& m, uint8_t* p) {
     return 6;
 }
 
-// SET_HEATER (0x13, host -> device, queued): Set the heater's equivalent DC voltage (PWM duty = (V / V_supply)^2); 0 turns it off.
+// SET_HEATER (0x13, host -> device, queued): Set the heater's equivalent DC voltage (PWM duty = (V / V_supply)^2, rounded to the device's duty steps; SAMPLE reports the voltage applied); 0 turns it off.
 struct SetHeater {
     static const uint8_t ID = 0x13;
     static const uint8_t SIZE = 4;
@@ -273,7 +297,7 @@ inline uint8_t pack(const Boot& m, uint8_t* p) {
 // IDENTITY (0x81, device -> host): Answer to HELLO - firmware identity, catalogue hash, geometry and limits.
 struct Identity {
     static const uint8_t ID = 0x81;
-    static const uint8_t SIZE = 32;
+    static const uint8_t SIZE = 40;
     uint8_t protocol_version;  // protocol version the device speaks
     uint8_t fw_major;  // firmware version
     uint8_t fw_minor;  // firmware version
@@ -288,6 +312,8 @@ struct Identity {
     uint8_t queue_slots;  // command queue capacity
     uint16_t watchdog_ms;  // host silence that stops an active device [ms]
     uint8_t flags;  // device_flags
+    uint32_t min_sample_period_us;  // shortest sampling period the device accepts (0 = off is always accepted) [us]
+    uint32_t fault_release_ms;  // time a latched fault holds the motor before it is released (0 = never) [ms]
 };
 inline void unpack(const uint8_t* p, Identity& m) { 
     m.protocol_version = static_cast<uint8_t>(get_le<uint8_t>(p + 0));
@@ -304,6 +330,8 @@ inline void unpack(const uint8_t* p, Identity& m) {
     m.queue_slots = static_cast<uint8_t>(get_le<uint8_t>(p + 28));
     m.watchdog_ms = static_cast<uint16_t>(get_le<uint16_t>(p + 29));
     m.flags = static_cast<uint8_t>(get_le<uint8_t>(p + 31));
+    m.min_sample_period_us = static_cast<uint32_t>(get_le<uint32_t>(p + 32));
+    m.fault_release_ms = static_cast<uint32_t>(get_le<uint32_t>(p + 36));
 }
 inline uint8_t pack(const Identity& m, uint8_t* p) { 
     put_le<uint8_t>(p + 0, static_cast<uint8_t>(m.protocol_version));
@@ -320,7 +348,9 @@ inline uint8_t pack(const Identity& m, uint8_t* p) {
     put_le<uint8_t>(p + 28, static_cast<uint8_t>(m.queue_slots));
     put_le<uint16_t>(p + 29, static_cast<uint16_t>(m.watchdog_ms));
     put_le<uint8_t>(p + 31, static_cast<uint8_t>(m.flags));
-    return 32;
+    put_le<uint32_t>(p + 32, static_cast<uint32_t>(m.min_sample_period_us));
+    put_le<uint32_t>(p + 36, static_cast<uint32_t>(m.fault_release_ms));
+    return 40;
 }
 
 // ACK (0x82, device -> host): Acknowledges a host command (status ok) or refuses it (any other status, a NAK).
@@ -351,12 +381,12 @@ struct Sample {
     static const uint8_t ID = 0x83;
     static const uint8_t SIZE = 28;
     uint32_t counter;  // running sample counter (gaps = lost samples)
-    uint64_t t_us;  // device time since boot [us]
+    uint64_t t_us;  // device time (since boot) at which this sample's position conversion started [us]
     int32_t step_position;  // motor position [step]
     int16_t position_raw;  // ADS1115 conversion of the position sensor [count]
     int32_t resistance_raw;  // CS5513 20-bit two's-complement conversion [count]
     uint8_t adc_flags;  // adc_flags
-    uint16_t heater_mV;  // heater equivalent voltage now applied [mV]
+    uint16_t heater_mV;  // heater equivalent voltage actually applied (after the PWM's rounding) [mV]
     uint8_t motor_moving;  // 1 while a move executes
     uint16_t segment;  // segment index now executing (or last executed)
 };
@@ -413,12 +443,18 @@ inline uint8_t pack(const Event& m, uint8_t* p) {
 // QUEUE_STATUS (0x85, device -> host): Answer to HEARTBEAT - queue and executor state.
 struct QueueStatus {
     static const uint8_t ID = 0x85;
-    static const uint8_t SIZE = 14;
+    static const uint8_t SIZE = 27;
     uint64_t t_us;  // device time since boot [us]
     uint8_t queue_free;  // free queue slots
     uint8_t executing;  // 1 while a segment executes
     uint16_t segment;  // segment index executing (or last executed)
     uint16_t fault;  // latched fault code
+    uint8_t state;  // device_state
+    int32_t step_position;  // motor position now [step]
+    uint16_t step_underruns;  // times the step generator ran dry mid-move since boot (saturates)
+    uint16_t uart_overruns;  // bytes the UART lost since boot - receiver overrun (DOR) plus receive ring full (saturates)
+    uint16_t uart_frame_errors;  // bytes received with a framing error since boot (saturates)
+    uint16_t i2c_recoveries;  // I2C bus recoveries since boot (saturates)
 };
 inline void unpack(const uint8_t* p, QueueStatus& m) { 
     m.t_us = static_cast<uint64_t>(get_le<uint64_t>(p + 0));
@@ -426,6 +462,12 @@ inline void unpack(const uint8_t* p, QueueStatus& m) {
     m.executing = static_cast<uint8_t>(get_le<uint8_t>(p + 9));
     m.segment = static_cast<uint16_t>(get_le<uint16_t>(p + 10));
     m.fault = static_cast<uint16_t>(get_le<uint16_t>(p + 12));
+    m.state = static_cast<uint8_t>(get_le<uint8_t>(p + 14));
+    m.step_position = static_cast<int32_t>(get_le<uint32_t>(p + 15));
+    m.step_underruns = static_cast<uint16_t>(get_le<uint16_t>(p + 19));
+    m.uart_overruns = static_cast<uint16_t>(get_le<uint16_t>(p + 21));
+    m.uart_frame_errors = static_cast<uint16_t>(get_le<uint16_t>(p + 23));
+    m.i2c_recoveries = static_cast<uint16_t>(get_le<uint16_t>(p + 25));
 }
 inline uint8_t pack(const QueueStatus& m, uint8_t* p) { 
     put_le<uint64_t>(p + 0, static_cast<uint64_t>(m.t_us));
@@ -433,7 +475,13 @@ inline uint8_t pack(const QueueStatus& m, uint8_t* p) {
     put_le<uint8_t>(p + 9, static_cast<uint8_t>(m.executing));
     put_le<uint16_t>(p + 10, static_cast<uint16_t>(m.segment));
     put_le<uint16_t>(p + 12, static_cast<uint16_t>(m.fault));
-    return 14;
+    put_le<uint8_t>(p + 14, static_cast<uint8_t>(m.state));
+    put_le<uint32_t>(p + 15, static_cast<uint32_t>(m.step_position));
+    put_le<uint16_t>(p + 19, static_cast<uint16_t>(m.step_underruns));
+    put_le<uint16_t>(p + 21, static_cast<uint16_t>(m.uart_overruns));
+    put_le<uint16_t>(p + 23, static_cast<uint16_t>(m.uart_frame_errors));
+    put_le<uint16_t>(p + 25, static_cast<uint16_t>(m.i2c_recoveries));
+    return 27;
 }
 
 // Payload size of a message id, or -1 when the id is not in the catalogue.
@@ -444,17 +492,18 @@ inline int16_t payload_size(uint8_t msg_id) {
     case 0x03: return 0;
     case 0x04: return 0;
     case 0x05: return 4;
+    case 0x06: return 4;
     case 0x10: return 14;
     case 0x11: return 14;
     case 0x12: return 6;
     case 0x13: return 4;
     case 0x14: return 6;
     case 0x80: return 4;
-    case 0x81: return 32;
+    case 0x81: return 40;
     case 0x82: return 5;
     case 0x83: return 28;
     case 0x84: return 17;
-    case 0x85: return 14;
+    case 0x85: return 27;
     default: return -1;
     }
 }
@@ -486,6 +535,10 @@ inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
     }
     case 0x05: {
         out[0] = static_cast<uint32_t>(get_le<uint32_t>(p + 0));
+        return 1;
+    }
+    case 0x06: {
+        out[0] = static_cast<int32_t>(get_le<uint32_t>(p + 0));
         return 1;
     }
     case 0x10: {
@@ -539,7 +592,9 @@ inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
         out[11] = static_cast<uint8_t>(get_le<uint8_t>(p + 28));
         out[12] = static_cast<uint16_t>(get_le<uint16_t>(p + 29));
         out[13] = static_cast<uint8_t>(get_le<uint8_t>(p + 31));
-        return 14;
+        out[14] = static_cast<uint32_t>(get_le<uint32_t>(p + 32));
+        out[15] = static_cast<uint32_t>(get_le<uint32_t>(p + 36));
+        return 16;
     }
     case 0x82: {
         out[0] = static_cast<uint16_t>(get_le<uint16_t>(p + 0));
@@ -574,7 +629,13 @@ inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
         out[2] = static_cast<uint8_t>(get_le<uint8_t>(p + 9));
         out[3] = static_cast<uint16_t>(get_le<uint16_t>(p + 10));
         out[4] = static_cast<uint16_t>(get_le<uint16_t>(p + 12));
-        return 5;
+        out[5] = static_cast<uint8_t>(get_le<uint8_t>(p + 14));
+        out[6] = static_cast<int32_t>(get_le<uint32_t>(p + 15));
+        out[7] = static_cast<uint16_t>(get_le<uint16_t>(p + 19));
+        out[8] = static_cast<uint16_t>(get_le<uint16_t>(p + 21));
+        out[9] = static_cast<uint16_t>(get_le<uint16_t>(p + 23));
+        out[10] = static_cast<uint16_t>(get_le<uint16_t>(p + 25));
+        return 11;
     }
     default: return 0;
     }

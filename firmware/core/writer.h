@@ -20,7 +20,7 @@ namespace fw {
 class FrameWriter {
 public:
     static const uint8_t SLOTS = 16;
-    static const uint8_t SLOT_PAYLOAD = 32;  // IDENTITY, the largest urgent message
+    static const uint8_t SLOT_PAYLOAD = 40;  // IDENTITY, the largest urgent message
     static const uint8_t NO_SLOT = 0xFF;
 
     explicit FrameWriter(Board& board);

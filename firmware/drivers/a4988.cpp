@@ -9,14 +9,14 @@ namespace {
 bool g_enabled = false;
 }
 
-void init() {
-    hal::gpio_output(hal::PIN_MOTOR_EN, true);  // disabled first, before anything moves
-    hal::gpio_output(hal::PIN_MOTOR_STEP, false);
+void init(bool keep_enabled) {
+    hal::gpio_output(hal::PIN_MOTOR_STEP, false);  // no edge can reach the driver from here on
+    hal::gpio_output(hal::PIN_MOTOR_EN, !keep_enabled);
     hal::gpio_output(hal::PIN_MOTOR_DIR, false);
     hal::gpio_output(hal::PIN_MOTOR_MS1, true);
     hal::gpio_output(hal::PIN_MOTOR_MS2, true);
     hal::gpio_output(hal::PIN_MOTOR_MS3, true);
-    g_enabled = false;
+    g_enabled = keep_enabled;
 }
 
 void enable(bool on) {

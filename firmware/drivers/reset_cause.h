@@ -1,12 +1,21 @@
-// MCUSR reset flags -> proto::boot_reason.
+// Why the MCU reset, and whether the step position survived it.
 //
-// Contract. Flags accumulate until cleared, and hal/system.cpp clears them at every boot,
-// so normally exactly one is set. Priority when several are: power-on (it implies the
-// others are meaningless), brown-out, watchdog, external. No flag at all (the Mega's
-// bootloader may clear MCUSR before jumping to us after a DTR reset) reads as external.
+// Contract. The Mega's stk500v2 bootloader reads MCUSR and clears it before it jumps to
+// the application, so the flags alone say nothing on a stock board. The firmware
+// therefore keeps a ResetRecord in .noinit (hal/system.cpp): SRAM keeps it across any
+// reset but a power-on, where it is random and fails its CRC. The watchdog ISR writes
+// cause = CAUSE_WATCHDOG into it before restarting. Decoding, in order:
+//   PORF -> power_on; BORF -> brown_out; record not intact -> power_on (the bootloader
+//   cleared PORF); cause watchdog or WDRF -> watchdog_reset; else external_reset (DTR,
+//   the reset button).
+// The position survives when the record is intact and marked valid (the motor was at
+// rest), the reset was not a power-on or brown-out, and the A4988's /ENABLE read low
+// at start-up: with a pull-down on /ENABLE the driver stayed energized through reset
+// and bootloader, so a loaded TSA could not turn the motor (firmware/README.md).
 #pragma once
 #include <stdint.h>
 
+#include "../core/crc16.h"
 #include "../core/protocol_catalogue.h"
 
 namespace drv {
@@ -17,11 +26,48 @@ static const uint8_t MCUSR_EXTRF = 1 << 1;
 static const uint8_t MCUSR_BORF = 1 << 2;
 static const uint8_t MCUSR_WDRF = 1 << 3;
 
-inline uint8_t boot_reason_from_mcusr(uint8_t flags) {
-    if (flags & MCUSR_PORF) return proto::boot_reason::POWER_ON;
-    if (flags & MCUSR_BORF) return proto::boot_reason::BROWN_OUT;
-    if (flags & MCUSR_WDRF) return proto::boot_reason::WATCHDOG_RESET;
+static const uint16_t RESET_RECORD_MAGIC = 0x5A7B;
+static const uint8_t CAUSE_RUNNING = 1;   // the application ran; a reset now is external
+static const uint8_t CAUSE_WATCHDOG = 2;  // the watchdog ISR restarted the application
+
+struct ResetRecord {
+    uint16_t magic;
+    uint8_t cause;
+    uint8_t position_valid;
+    int32_t position_steps;
+    uint16_t crc;  // CRC-16/CCITT-FALSE of the 8 bytes above
+};
+
+inline uint16_t reset_record_crc(const ResetRecord& r) {
+    const uint8_t bytes[8] = {static_cast<uint8_t>(r.magic), static_cast<uint8_t>(r.magic >> 8), r.cause,
+                              r.position_valid, static_cast<uint8_t>(r.position_steps),
+                              static_cast<uint8_t>(r.position_steps >> 8),
+                              static_cast<uint8_t>(r.position_steps >> 16),
+                              static_cast<uint8_t>(r.position_steps >> 24)};
+    return fw::crc16(bytes, sizeof bytes);
+}
+
+inline void reset_record_seal(ResetRecord& r) {
+    r.magic = RESET_RECORD_MAGIC;
+    r.crc = reset_record_crc(r);
+}
+
+inline bool reset_record_intact(const ResetRecord& r) {
+    return r.magic == RESET_RECORD_MAGIC && r.crc == reset_record_crc(r) &&
+           (r.cause == CAUSE_RUNNING || r.cause == CAUSE_WATCHDOG) && r.position_valid <= 1;
+}
+
+inline uint8_t boot_reason_from(uint8_t mcusr, bool record_intact, uint8_t cause) {
+    if (mcusr & MCUSR_PORF) return proto::boot_reason::POWER_ON;
+    if (mcusr & MCUSR_BORF) return proto::boot_reason::BROWN_OUT;
+    if (!record_intact) return proto::boot_reason::POWER_ON;
+    if (cause == CAUSE_WATCHDOG || (mcusr & MCUSR_WDRF)) return proto::boot_reason::WATCHDOG_RESET;
     return proto::boot_reason::EXTERNAL_RESET;
+}
+
+inline bool position_survives(uint8_t reason, const ResetRecord& r, bool record_intact, bool motor_held) {
+    return record_intact && r.position_valid && motor_held && reason != proto::boot_reason::POWER_ON &&
+           reason != proto::boot_reason::BROWN_OUT;
 }
 
 }  // namespace drv

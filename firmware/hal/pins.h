@@ -8,9 +8,9 @@
 //   Function                         AVR pin  Mega header  Notes
 //   UART0 RXD0 (USB serial)          PE0      D0           250000 baud, U2X
 //   UART0 TXD0                       PE1      D1
-//   A4988 STEP                       PA0      D22          pulse >= 1 us, low >= 1 us
+//   A4988 STEP                       PA0      D22          pulse >= 1 us, low >= 1 us; 10k pull-down
 //   A4988 DIR                        PA1      D23          set >= 200 ns before STEP rises
-//   A4988 /ENABLE                    PA2      D24          active low; pulled high at reset
+//   A4988 /ENABLE                    PA2      D24          active low; 10k pull-DOWN: energized through reset
 //   A4988 MS1                        PA3      D25          MS1=MS2=MS3=1 -> 1/16 step
 //   A4988 MS2                        PA4      D26
 //   A4988 MS3                        PA5      D27
@@ -32,6 +32,11 @@
 #define PINS_STEP_BIT 0
 #define PINS_DIR_PORT PORTA
 #define PINS_DIR_BIT 1
+// Used before main() and in the watchdog ISR, where the gpio helpers are not available.
+#define PINS_EN_PIN PINA
+#define PINS_EN_BIT 2
+#define PINS_ISRC_PORT PORTC
+#define PINS_ISRC_BIT 3
 
 // X-macro: (hal::Pin, port letter, bit). The order need not match the enum; gpio.cpp
 // expands it into switch statements with constant addresses (sbi/cbi where possible),

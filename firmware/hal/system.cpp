@@ -1,11 +1,19 @@
 #include "system.h"
 
+#include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/wdt.h>
+#include <util/atomic.h>
+
+#include "pins.h"
+#include "pwm.h"
+#include "step_timer.h"
 
 namespace {
-// .noinit: .bss is zeroed in .init4, after this is written in .init3.
+// .noinit: .bss is zeroed in .init4, after these are written in .init3.
 uint8_t g_reset_flags __attribute__((section(".noinit")));
+uint8_t g_enable_level __attribute__((section(".noinit")));
+drv::ResetRecord g_record __attribute__((section(".noinit")));
 }  // namespace
 
 // Runs before the C runtime initialises .data/.bss and before main(); naked and in
@@ -15,14 +23,57 @@ extern "C" void tsa_capture_reset_flags() {
     g_reset_flags = MCUSR;
     MCUSR = 0;
     wdt_disable();
+    g_enable_level = PINS_EN_PIN & (1 << PINS_EN_BIT);  // A4988 /ENABLE, before anything drives it
 }
 
 namespace hal {
 
 uint8_t reset_flags() { return g_reset_flags; }
 
-void watchdog_enable() { wdt_enable(WDTO_500MS); }
+bool motor_enable_held_at_reset() { return g_enable_level == 0; }
+
+drv::ResetRecord& reset_record() { return g_record; }
+
+void reset_record_write(uint8_t cause, int32_t position_steps, bool position_valid) {
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+        g_record.cause = cause;
+        g_record.position_valid = position_valid ? 1 : 0;
+        g_record.position_steps = position_steps;
+        drv::reset_record_seal(g_record);
+    }
+}
+
+void quiesce() {
+    wdt_disable();
+    TIMSK0 = TIMSK1 = TIMSK2 = TIMSK3 = TIMSK4 = TIMSK5 = 0;
+    UCSR0B = 0;
+    TWCR = 0;
+    EIMSK = 0;
+    PCICR = 0;
+}
+
+void watchdog_enable() {
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+        wdt_reset();
+        WDTCSR = (1 << WDCE) | (1 << WDE);
+        WDTCSR = (1 << WDIE) | (1 << WDE) | (1 << WDP1) | (1 << WDP0);  // 128 ms at 5 V
+    }
+}
 
 void watchdog_kick() { wdt_reset(); }
 
 }  // namespace hal
+
+// Watchdog time-out (vector 12): the main loop hung. Make the rig safe first, then
+// restart the application without a hardware reset (see system.h).
+ISR(WDT_vect) {
+    hal::heater_pwm_emergency_off();
+    PINS_ISRC_PORT &= ~(1 << PINS_ISRC_BIT);  // 50 mA sense current off
+    const bool stepping = hal::step_running();
+    hal::step_emergency_stop();
+    g_record.cause = drv::CAUSE_WATCHDOG;
+    if (stepping) g_record.position_valid = 0;
+    drv::reset_record_seal(g_record);
+    hal::quiesce();
+    __asm__ __volatile__("jmp 0" ::: "memory");
+}

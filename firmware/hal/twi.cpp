@@ -10,13 +10,23 @@ namespace {
 const uint32_t TWI_HZ = 400000UL;
 
 // TWSR status codes (prescaler bits masked), ATmega2560 datasheet tables 24-2/24-3.
+const uint8_t ST_BUS_ERROR = 0x00;
 const uint8_t ST_START = 0x08;
 const uint8_t ST_REP_START = 0x10;
 const uint8_t ST_SLA_W_ACK = 0x18;
 const uint8_t ST_DATA_W_ACK = 0x28;
+const uint8_t ST_ARB_LOST = 0x38;
 const uint8_t ST_SLA_R_ACK = 0x40;
 const uint8_t ST_DATA_R_ACK = 0x50;
 const uint8_t ST_DATA_R_NACK = 0x58;
+
+// TWI pins on the ATmega2560: SCL = PD0, SDA = PD1 (external pull-ups on the board).
+const uint8_t SCL = 1 << 0;
+const uint8_t SDA = 1 << 1;
+
+uint16_t g_recoveries = 0;
+uint64_t g_backoff_until_us = 0;
+bool g_bus_suspect = false;  // the last failure may have left the bus held
 
 uint8_t status() { return TWSR & 0xF8; }
 
@@ -24,8 +34,13 @@ uint8_t status() { return TWSR & 0xF8; }
 bool wait_int() {
     const uint64_t t0 = micros();
     while (!(TWCR & (1 << TWINT))) {
-        if (micros() - t0 > TWI_TIMEOUT_US) return false;
+        if (micros() - t0 > TWI_TIMEOUT_US) {
+            g_bus_suspect = true;
+            return false;
+        }
     }
+    const uint8_t st = status();
+    if (st == ST_BUS_ERROR || st == ST_ARB_LOST) g_bus_suspect = true;
     return true;
 }
 
@@ -42,7 +57,42 @@ void stop() {
     }
 }
 
+void half_clock() {
+    // 5 us: ~100 kHz, within every I2C device's timing.
+    const uint64_t t0 = micros();
+    while (micros() - t0 < 5) {
+    }
+}
+
+// Free a bus a slave holds: clock SCL by hand until SDA is high (at most 9 clocks),
+// then a STOP (SDA rising while SCL is high). Open drain: a line is driven low by
+// making it an output (PORT bit 0) and released by making it an input.
+void recover_bus() {
+    TWCR = 0;
+    PORTD &= static_cast<uint8_t>(~(SCL | SDA));
+    DDRD &= static_cast<uint8_t>(~(SCL | SDA));
+    half_clock();
+    for (uint8_t i = 0; i < 9 && !(PIND & SDA); ++i) {
+        DDRD |= SCL;
+        half_clock();
+        DDRD &= static_cast<uint8_t>(~SCL);
+        half_clock();
+    }
+    DDRD |= SDA;  // SDA low while SCL is high ...
+    half_clock();
+    DDRD &= static_cast<uint8_t>(~SDA);  // ... then released: STOP
+    half_clock();
+    twi_init();
+    if (g_recoveries != 0xFFFF) ++g_recoveries;
+    g_backoff_until_us = micros() + TWI_BACKOFF_US;
+    g_bus_suspect = false;
+}
+
 bool fail() {
+    if (g_bus_suspect) {
+        recover_bus();
+        return false;
+    }
     stop();
     TWCR = 0;  // reset the TWI state machine, release SDA/SCL
     TWCR = 1 << TWEN;
@@ -56,6 +106,8 @@ bool begin(uint8_t sla) {
     TWDR = sla;
     return command(0);
 }
+
+bool backing_off() { return g_backoff_until_us != 0 && micros() < g_backoff_until_us; }
 }  // namespace
 
 void twi_init() {
@@ -65,6 +117,7 @@ void twi_init() {
 }
 
 bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n) {
+    if (backing_off()) return false;
     if (!begin(static_cast<uint8_t>(address7 << 1)) || status() != ST_SLA_W_ACK) return fail();
     for (uint8_t i = 0; i < n; ++i) {
         TWDR = data[i];
@@ -76,6 +129,7 @@ bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n) {
 
 bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
     if (n == 0) return true;
+    if (backing_off()) return false;
     if (!begin(static_cast<uint8_t>((address7 << 1) | 1)) || status() != ST_SLA_R_ACK) return fail();
     for (uint8_t i = 0; i < n; ++i) {
         const bool last = i + 1 == n;
@@ -86,5 +140,7 @@ bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
     stop();
     return true;
 }
+
+uint16_t twi_recoveries() { return g_recoveries; }
 
 }  // namespace hal

@@ -1,18 +1,26 @@
-// I2C (TWI) master, 400 kHz.
+// I2C (TWI) master, 400 kHz, with bus recovery.
 //
 // Contract. Blocking, but every wait is bounded (TWI_TIMEOUT_US per bus event): a stuck
 // or absent device returns false and never hangs the main loop. A write sends
 // address + bytes + STOP; a read sends address(R), receives n bytes (ACK all but the
-// last) + STOP. On any failure the bus is released (STOP, peripheral reset).
+// last) + STOP. A NACK fails the transfer (STOP, peripheral reset). A time-out, a bus
+// error or a lost arbitration means the bus may be held (a slave stuck mid-byte pulls
+// SDA low): the bus is recovered as NXP UM10204 3.1.16 describes - the TWI is turned
+// off, SCL clocked by hand (open drain, ~100 kHz) until SDA is released or 9 clocks
+// have passed, a STOP generated, the TWI turned on again - and counted
+// (twi_recoveries()); further transfers fail at once for TWI_BACKOFF_US so a dead bus
+// costs one recovery per back-off, not the main loop's time.
 #pragma once
 #include <stdint.h>
 
 namespace hal {
 
 static const uint16_t TWI_TIMEOUT_US = 1000;
+static const uint32_t TWI_BACKOFF_US = 10000;
 
 void twi_init();
 bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n);
 bool twi_read(uint8_t address7, uint8_t* data, uint8_t n);
+uint16_t twi_recoveries();  // since boot, saturating
 
 }  // namespace hal

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "config.h"
+#include "../drivers/heater_scale.h"
 
 namespace fw {
 
@@ -10,10 +11,13 @@ FakeBoard::FakeBoard()
     : step_ring_size(32), tx_ring_size(512), tx_drain_bytes_per_ms(0), reason(2), position_counts(1000),
       position_start_fails(false), position_poll_fails(false), position_latency_us(0), resistance_counts(50000),
       resistance_flags(0), resistance_start_fails(false), resistance_poll_fails(false), resistance_latency_us(0),
-      step_glitch(0), now(0), position(0), min_position(0), max_position(0), steps_executed(0),
-      min_interval_ticks(0xFFFFFFFFUL), heater_mV(0), sense_on(false), motor_enabled(false), kicks(0),
-      interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), rx_head_(0), rx_count_(0),
-      tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), position_busy_(false),
+      step_glitch(0), kept_valid(false), kept_steps(0), uart_overrun_count(0), uart_frame_error_count(0),
+      i2c_recovery_count(0), now(0), position(0), min_position(0), max_position(0), steps_executed(0),
+      min_interval_ticks(0xFFFFFFFFUL), heater_mV(0), heater_requested_mV(0), sense_on(false), motor_enabled(false),
+      kicks(0), interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), underruns(0),
+      truncations(0), record_steps(0), record_valid(false), record_writes(0), rx_head_(0), rx_count_(0),
+      tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), dir_(1),
+      expect_more_(false), position_busy_(false),
       position_started_(0), resistance_busy_(false), resistance_started_(0), sense_since_(0) {}
 
 void FakeBoard::advance_us(uint64_t us) {
@@ -29,6 +33,7 @@ void FakeBoard::advance_us(uint64_t us) {
         if (position > max_position) max_position = position;
         step_head_ = static_cast<uint8_t>((step_head_ + 1) % STEP_RING_MAX);
         --step_count_;
+        if (step_count_ == 0 && expect_more_ && underruns != 0xFFFF) ++underruns;  // ran dry mid-move
     }
     if (tx_drain_bytes_per_ms) {
         uint64_t drained = us * tx_drain_bytes_per_ms;  // milli-bytes
@@ -62,6 +67,17 @@ int16_t FakeBoard::serial_read() {
     return b;
 }
 
+int16_t FakeBoard::serial_peek(uint16_t offset) {
+    if (offset >= rx_count_) return -1;
+    return rx_[(rx_head_ + offset) % RX_CAP];
+}
+
+void FakeBoard::serial_skip(uint16_t n) {
+    if (n > rx_count_) n = rx_count_;
+    rx_head_ = static_cast<uint16_t>((rx_head_ + n) % RX_CAP);
+    rx_count_ = static_cast<uint16_t>(rx_count_ - n);
+}
+
 uint16_t FakeBoard::serial_tx_free() {
     uint64_t pending = (tx_pending_milli_ + 999) / 1000;
     return pending >= tx_ring_size ? 0 : static_cast<uint16_t>(tx_ring_size - pending);
@@ -83,30 +99,46 @@ uint8_t FakeBoard::step_space() {
     return step_count_ >= size ? 0 : static_cast<uint8_t>(size - step_count_);
 }
 
-void FakeBoard::step_push(int8_t direction, uint32_t interval_ticks) {
+void FakeBoard::step_push(int8_t direction, uint32_t interval_ticks, bool last) {
     if (step_space() == 0) return;
+    expect_more_ = !last;
     if (step_count_ == 0) {
         last_edge_tick_ = now * (STEP_TICK_HZ / 1000000UL);  // first step: from now
+        dir_ = direction >= 0 ? 1 : -1;  // steps queued while running keep the direction
     } else if (interval_ticks < min_interval_ticks) {
         min_interval_ticks = interval_ticks;
     }
     Step& s = steps_[(step_head_ + step_count_) % STEP_RING_MAX];
-    s.dir = direction >= 0 ? 1 : -1;
+    s.dir = dir_;
     s.ticks = interval_ticks;
     ++step_count_;
 }
 
 void FakeBoard::step_halt() {
     step_count_ = 0;
+    expect_more_ = false;
     ++halts;
 }
 
-void FakeBoard::heater_set_mV(uint16_t mV) {
-    if (mV > 0 && sense_on) {
+// The first queued entry is the pending edge (its time is already running).
+uint16_t FakeBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
+    ++truncations;
+    const uint8_t kept = step_count_ == 0 ? 0 : (step_count_ - 1 < keep ? step_count_ : 1 + keep);
+    const uint16_t dropped = static_cast<uint16_t>(step_count_ - kept);
+    step_count_ = kept;
+    rest_position = position + dir_ * static_cast<int32_t>(kept);
+    return dropped;
+}
+
+uint16_t FakeBoard::heater_set_mV(uint16_t mV) {
+    const uint16_t applied = drv::heater::applied_for_mV(mV);
+    if (applied > 0 && sense_on) {
         ++interlock_violations;
         sense_on = false;  // the driver's own interlock
     }
-    heater_mV = mV;
+    heater_requested_mV = mV;
+    heater_mV = applied;
+    return applied;
 }
 
 bool FakeBoard::sense_current(bool on) {

@@ -45,6 +45,11 @@ public:
     bool resistance_poll_fails;
     uint32_t resistance_latency_us;
     int32_t step_glitch;           // added to every executed step (simulates a lost step)
+    bool kept_valid;               // position_kept(): the position survived a reset (false: power-on)
+    int32_t kept_steps;
+    uint16_t uart_overrun_count;   // counters the board reports
+    uint16_t uart_frame_error_count;
+    uint16_t i2c_recovery_count;
 
     // observations
     uint64_t now;
@@ -53,7 +58,8 @@ public:
     int32_t max_position;
     uint32_t steps_executed;
     uint32_t min_interval_ticks;   // shortest interval pushed (excluding a burst's first)
-    uint16_t heater_mV;
+    uint16_t heater_mV;              // equivalent voltage applied (the driver's duty scale)
+    uint16_t heater_requested_mV;
     bool sense_on;
     bool motor_enabled;
     uint32_t kicks;
@@ -61,20 +67,29 @@ public:
     uint32_t sense_refusals;         // sense_current(true) refused (heater on)
     uint32_t unsettled_conversions;  // resistance started without a settled sense current
     uint32_t halts;
+    uint16_t underruns;              // the ring ran dry while more steps were promised
+    uint32_t truncations;
+    int32_t record_steps;            // the last position_record()
+    bool record_valid;
+    uint32_t record_writes;
 
     // --- Board ---------------------------------------------------------------------
     uint64_t now_us() override { return now; }
     int16_t serial_read() override;
+    int16_t serial_peek(uint16_t offset) override;
+    void serial_skip(uint16_t n) override;
     uint16_t serial_tx_free() override;
     uint16_t serial_write(const uint8_t* data, uint16_t n) override;
     void motor_enable(bool on) override { motor_enabled = on; }
     uint8_t step_space() override;
-    void step_push(int8_t direction, uint32_t interval_ticks) override;
+    void step_push(int8_t direction, uint32_t interval_ticks, bool last) override;
     bool step_busy() override { return step_count_ > 0; }
     int32_t step_position() override { return position; }
     void step_set_position(int32_t steps) override { position = steps; }
     void step_halt() override;
-    void heater_set_mV(uint16_t mV) override;
+    uint16_t step_truncate(uint8_t keep, int32_t& rest_position) override;
+    uint16_t step_underruns() override { return underruns; }
+    uint16_t heater_set_mV(uint16_t mV) override;
     bool sense_current(bool on) override;
     bool position_start() override;
     int8_t position_poll(int16_t& counts) override;
@@ -82,6 +97,18 @@ public:
     int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
     uint8_t boot_reason() override { return reason; }
     void kick_hw_watchdog() override { ++kicks; }
+    bool position_kept(int32_t& steps) override {
+        steps = kept_steps;
+        return kept_valid;
+    }
+    void position_record(int32_t steps, bool valid) override {
+        record_steps = steps;
+        record_valid = valid;
+        ++record_writes;
+    }
+    uint16_t uart_overruns() override { return uart_overrun_count; }
+    uint16_t uart_frame_errors() override { return uart_frame_error_count; }
+    uint16_t i2c_recoveries() override { return i2c_recovery_count; }
 
 private:
     struct Step {
@@ -96,6 +123,8 @@ private:
     Step steps_[STEP_RING_MAX];
     uint8_t step_head_, step_count_;
     uint64_t last_edge_tick_;
+    int8_t dir_;
+    bool expect_more_;
     bool position_busy_;
     uint64_t position_started_;
     bool resistance_busy_;

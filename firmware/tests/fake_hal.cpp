@@ -29,7 +29,7 @@ struct State {
     int rq_head, rq_tail;
     uint8_t nack_address;
     // PWM
-    uint8_t duty;
+    uint16_t duty;  // heater duty in 1/4096
     int pwm_writes;
     // IRQ
     int mask_depth;
@@ -97,7 +97,7 @@ void i2c_nack_address(uint8_t address7) { s.nack_address = address7; }
 int i2c_event_count() { return s.n_i2c_events; }
 const I2cEvent& i2c_event(int i) { return s.i2c_events[i]; }
 
-uint8_t heater_duty() { return s.duty; }
+uint16_t heater_steps() { return s.duty; }
 int heater_pwm_writes() { return s.pwm_writes; }
 
 void raise_interrupt(IsrFn fn) {
@@ -163,10 +163,11 @@ bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
 }
 
 void heater_pwm_init() {}
-void heater_pwm_set(uint8_t duty) {
-    s.duty = duty;
+void heater_pwm_set_steps(uint16_t steps) {
+    s.duty = steps;
     ++s.pwm_writes;
 }
+void heater_pwm_emergency_off() { s.duty = 0; }
 
 InterruptLock::InterruptLock() : saved_(0) { ++s.mask_depth; }
 

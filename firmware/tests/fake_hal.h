@@ -56,7 +56,7 @@ int i2c_event_count();
 const I2cEvent& i2c_event(int i);
 
 // PWM.
-uint8_t heater_duty();
+uint16_t heater_steps();  // duty in 1/4096
 int heater_pwm_writes();
 
 // Interrupts.

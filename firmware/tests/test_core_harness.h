@@ -34,7 +34,11 @@ public:
     bool keepalive;  // run_us() sends HEARTBEAT every 250 ms, as the host does
     uint64_t last_keepalive;
 
-    Harness() : dev(board), host_seq(100), n(0), step_us(50), keepalive(false), last_keepalive(0) {}
+    // The board says the position survived a reset at 0 (tests of the unknown position
+    // clear board.kept_valid before boot()).
+    Harness() : dev(board), host_seq(100), n(0), step_us(50), keepalive(false), last_keepalive(0) {
+        board.kept_valid = true;
+    }
 
     void boot() {
         dev.boot();
@@ -122,6 +126,11 @@ public:
         proto::SetHeater m;
         m.segment = seg;
         m.voltage_mV = mV;
+        return send_msg(m);
+    }
+    uint16_t set_position(int32_t steps) {
+        proto::SetPosition m;
+        m.position_steps = steps;
         return send_msg(m);
     }
     uint16_t sampling(uint16_t seg, uint32_t period_us) {

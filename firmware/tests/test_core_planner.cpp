@@ -141,3 +141,36 @@ TEST(core_planner_ramp_matches_constant_acceleration) {
     CHECK(worst < 0.001);
     printf("planner: worst ramp step-time error %.5f %% (a=%u, 2000 steps)\n", worst * 100, accel);
 }
+
+TEST(core_planner_stop_decelerates_at_the_limit_never_faster) {
+    fw::StepPlanner p;
+    p.begin(200000, 16000, 32000);
+    uint32_t last = 0;
+    for (int i = 0; i < 20000; ++i) last = p.next_interval();  // cruising
+    p.rewind(50);  // the step generator dropped 50 queued steps
+    CHECK_EQ(p.remaining(), 200000 - 20000 + 50);
+    const uint32_t kept = p.interval_q8(20000 - 50 - 1) >> 8;
+    CHECK_EQ(kept, last);  // cruise
+    const uint32_t n = p.stop(320000);
+    CHECK_EQ(n, 400u);  // 16000^2 / (2 * 320000)
+    CHECK_EQ(p.remaining(), n);
+    uint32_t prev = kept;
+    uint64_t ticks = 0;
+    uint32_t count = 0;
+    while (!p.finished()) {
+        const uint32_t iv = p.next_interval();
+        CHECK(iv + 1 >= prev);  // never faster than the step before
+        prev = iv;
+        ticks += iv;
+        ++count;
+    }
+    CHECK_EQ(count, n);
+    // v / a = 50 ms at constant deceleration
+    const double t = static_cast<double>(ticks) / fw::STEP_TICK_HZ;
+    CHECK(t > 0.049 && t < 0.052);
+    // near the end the planned deceleration is shorter: the move finishes as planned
+    fw::StepPlanner q;
+    q.begin(1000, 16000, 320000);
+    for (int i = 0; i < 900; ++i) q.next_interval();
+    CHECK_EQ(q.stop(320000), 100u);
+}

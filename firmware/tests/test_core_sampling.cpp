@@ -40,8 +40,8 @@ TEST(core_sampling_grid_and_fields) {
 TEST(core_sampling_no_segment_before_any) {
     Harness h;
     h.boot();
-    h.sampling(0xFFFF, 1000);
-    h.run_us(3500);
+    h.sampling(0xFFFF, cfg::MIN_SAMPLE_PERIOD_US);
+    h.run_us(cfg::MIN_SAMPLE_PERIOD_US + 2500);
     int i = h.find(proto::Sample::ID);
     CHECK(i >= 0);
     if (i >= 0) CHECK_EQ(h.replies[i].f[8], 0xFFFF);
@@ -106,11 +106,11 @@ TEST(core_sampling_drops_when_tx_full_and_counter_advances) {
     Harness h;
     h.keepalive = true;
     h.board.tx_ring_size = 64;
-    h.board.tx_drain_bytes_per_ms = 10;  // too slow for a 36-byte SAMPLE every ms
+    h.board.tx_drain_bytes_per_ms = 10;  // too slow for a 36-byte SAMPLE every 3 ms
     h.boot();
-    h.sampling(1, 1000);
+    h.sampling(1, cfg::MIN_SAMPLE_PERIOD_US);
     h.clear();
-    h.run_us(100000);
+    h.run_us(300000);
     CHECK(h.dev.samples_dropped() > 0);
     CHECK_EQ(h.dev.urgent_lost(), 0);
     int64_t last = -1;
@@ -130,19 +130,25 @@ TEST(core_sampling_drops_when_tx_full_and_counter_advances) {
 TEST(core_sampling_slow_conversion_skips_slots) {
     Harness h;
     h.keepalive = true;
-    h.board.position_latency_us = 2500;  // slower than the 1 ms period
+    h.board.position_latency_us = 7500;  // slower than the 3 ms period
     h.boot();
-    h.sampling(1, 1000);
+    const uint64_t anchor = h.board.now;
+    h.sampling(1, 3000);
     h.clear();
-    h.run_us(50000);
+    h.run_us(150000);
     int got = h.count(proto::Sample::ID);
     CHECK(got > 10 && got < 30);
-    int64_t last_t = 0;
+    int64_t last_t = 0, last_counter = -1;
     for (int i = 0; i < h.n; ++i) {
         if (h.replies[i].id != proto::Sample::ID) continue;
-        CHECK_EQ((h.replies[i].f[1] - 1000) % 1000, 0);  // always on the grid
+        // stamped when its conversion started: after its counter's grid slot (late when
+        // the previous conversion still ran), never a whole period late
+        const int64_t slot = static_cast<int64_t>(anchor) + 3000 * (h.replies[i].f[0] + 1);
+        CHECK(h.replies[i].f[1] >= slot && h.replies[i].f[1] < slot + 3000);
         CHECK(h.replies[i].f[1] > last_t);
+        CHECK(h.replies[i].f[0] > last_counter);
         last_t = h.replies[i].f[1];
+        last_counter = h.replies[i].f[0];
     }
     h.sampling(2, 0);
     h.run_us(10000);
@@ -150,6 +156,30 @@ TEST(core_sampling_slow_conversion_skips_slots) {
     h.run_us(10000);
     CHECK_EQ(h.count(proto::Sample::ID), 0);
     CHECK(!h.board.sense_on);
+}
+
+TEST(core_sampling_stamp_is_the_actual_conversion_start) {
+    // A main loop that comes round late (here every 700 us) starts conversions late:
+    // the SAMPLE says when its conversion really started, not when it was due.
+    Harness h;
+    h.keepalive = true;
+    h.step_us = 700;
+    h.boot();
+    const uint64_t anchor = h.board.now;
+    h.sampling(1, 10000);
+    h.clear();
+    h.run_us(200000);
+    int late = 0, got = 0;
+    for (int i = 0; i < h.n; ++i) {
+        if (h.replies[i].id != proto::Sample::ID) continue;
+        ++got;
+        const int64_t due = static_cast<int64_t>(anchor) + 10000 * (h.replies[i].f[0] + 1);
+        const int64_t t = h.replies[i].f[1];
+        CHECK(t >= due && t < due + 700);
+        if (t != due) ++late;
+    }
+    CHECK(got >= 18);
+    CHECK(late > got / 2);
 }
 
 TEST(core_sampling_slow_resistance_keeps_the_grid) {

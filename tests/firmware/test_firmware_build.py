@@ -10,7 +10,7 @@ import subprocess
 
 import pytest
 
-SRAM_BUDGET_B = 6144
+SRAM_BUDGET_B = 4096
 
 
 def run(repo_root, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:

@@ -11,7 +11,7 @@ from enum import IntEnum, IntFlag
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 1
-CATALOGUE_HASH = 0x3E6FFD3D
+CATALOGUE_HASH = 0x4F006524
 MAX_PAYLOAD = 64
 
 
@@ -37,6 +37,9 @@ class EventKind(IntEnum):
     STOPPED = 5
     QUEUE_EMPTY = 6
     FAULT_CLEARED = 7
+    STEP_UNDERRUN = 8
+    I2C_RECOVERED = 9
+    MOTOR_RELEASED = 10
 
 
 class Fault(IntEnum):
@@ -74,6 +77,14 @@ class DeviceFlags(IntFlag):
     SIMULATED = 1
 
 
+class DeviceState(IntFlag):
+    """Catalogue enum `device_state`."""
+
+    POSITION_UNKNOWN = 1
+    MOTOR_RELEASED = 2
+    STOPPING = 4
+
+
 class Hello(NamedTuple):
     """HELLO (0x01, host -> device): Start a session; the device answers with IDENTITY and resets its duplicate filter.
 
@@ -91,7 +102,7 @@ class Heartbeat(NamedTuple):
 
 
 class Stop(NamedTuple):
-    """STOP (0x03, host -> device): Immediate stop, bypassing the queue - motor halts, heater off, queue cleared (a latched fault stays).
+    """STOP (0x03, host -> device): Stop now, bypassing the queue - heater off, queue cleared (a latched fault stays); the motor decelerates at max_accel_steps_per_s2 (at once when slow) and EVENT stopped carries the position it comes to rest at. Acted on even while the device's output is backed up.
     """
 
 
@@ -107,6 +118,15 @@ class SimSetLoad(NamedTuple):
     """
 
     load_mg: int
+
+
+class SetPosition(NamedTuple):
+    """SET_POSITION (0x06, host -> device): Declare the motor's present position (the twist zero is where the strings hang untwisted); makes an unknown position known. Refused with bad_state while a move runs, is queued or the motor is stopping, limit_exceeded outside the twist limits.
+
+    position_steps (i32 [step]): the motor's present position
+    """
+
+    position_steps: int
 
 
 class MoveTo(NamedTuple):
@@ -151,7 +171,7 @@ class Dwell(NamedTuple):
 
 
 class SetHeater(NamedTuple):
-    """SET_HEATER (0x13, host -> device): Set the heater's equivalent DC voltage (PWM duty = (V / V_supply)^2); 0 turns it off.
+    """SET_HEATER (0x13, host -> device): Set the heater's equivalent DC voltage (PWM duty = (V / V_supply)^2, rounded to the device's duty steps; SAMPLE reports the voltage applied); 0 turns it off.
 
     segment (u16): plan segment index
     voltage_mV (u16 [mV]): equivalent DC voltage
@@ -204,6 +224,8 @@ class Identity(NamedTuple):
     queue_slots (u8): command queue capacity
     watchdog_ms (u16 [ms]): host silence that stops an active device
     flags (u8): device_flags
+    min_sample_period_us (u32 [us]): shortest sampling period the device accepts (0 = off is always accepted)
+    fault_release_ms (u32 [ms]): time a latched fault holds the motor before it is released (0 = never)
     """
 
     protocol_version: int
@@ -220,6 +242,8 @@ class Identity(NamedTuple):
     queue_slots: int
     watchdog_ms: int
     flags: int
+    min_sample_period_us: int
+    fault_release_ms: int
 
 
 class Ack(NamedTuple):
@@ -241,12 +265,12 @@ class Sample(NamedTuple):
     """SAMPLE (0x83, device -> host): One periodic measurement.
 
     counter (u32): running sample counter (gaps = lost samples)
-    t_us (u64 [us]): device time since boot
+    t_us (u64 [us]): device time (since boot) at which this sample's position conversion started
     step_position (i32 [step]): motor position
     position_raw (i16 [count]): ADS1115 conversion of the position sensor
     resistance_raw (i32 [count]): CS5513 20-bit two's-complement conversion
     adc_flags (u8): adc_flags
-    heater_mV (u16 [mV]): heater equivalent voltage now applied
+    heater_mV (u16 [mV]): heater equivalent voltage actually applied (after the PWM's rounding)
     motor_moving (u8): 1 while a move executes
     segment (u16): segment index now executing (or last executed)
     """
@@ -287,6 +311,12 @@ class QueueStatus(NamedTuple):
     executing (u8): 1 while a segment executes
     segment (u16): segment index executing (or last executed)
     fault (u16): latched fault code
+    state (u8): device_state
+    step_position (i32 [step]): motor position now
+    step_underruns (u16): times the step generator ran dry mid-move since boot (saturates)
+    uart_overruns (u16): bytes the UART lost since boot - receiver overrun (DOR) plus receive ring full (saturates)
+    uart_frame_errors (u16): bytes received with a framing error since boot (saturates)
+    i2c_recoveries (u16): I2C bus recoveries since boot (saturates)
     """
 
     t_us: int
@@ -294,6 +324,12 @@ class QueueStatus(NamedTuple):
     executing: int
     segment: int
     fault: int
+    state: int
+    step_position: int
+    step_underruns: int
+    uart_overruns: int
+    uart_frame_errors: int
+    i2c_recoveries: int
 
 
 @dataclass(frozen=True)
@@ -315,17 +351,18 @@ MESSAGES: dict[int, MessageSpec] = {
     0x03: MessageSpec('STOP', 0x03, 'host', False, Stop, struct.Struct('<'), {}),
     0x04: MessageSpec('CLEAR_QUEUE', 0x04, 'host', False, ClearQueue, struct.Struct('<'), {}),
     0x05: MessageSpec('SIM_SET_LOAD', 0x05, 'host', False, SimSetLoad, struct.Struct('<I'), {'load_mg': 'mg'}),
+    0x06: MessageSpec('SET_POSITION', 0x06, 'host', False, SetPosition, struct.Struct('<i'), {'position_steps': 'step'}),
     0x10: MessageSpec('MOVE_TO', 0x10, 'host', True, MoveTo, struct.Struct('<HiII'), {'target_steps': 'step', 'rate_steps_per_s': 'step/s', 'accel_steps_per_s2': 'step/s^2'}),
     0x11: MessageSpec('MOVE_BY', 0x11, 'host', True, MoveBy, struct.Struct('<HiII'), {'delta_steps': 'step', 'rate_steps_per_s': 'step/s', 'accel_steps_per_s2': 'step/s^2'}),
     0x12: MessageSpec('DWELL', 0x12, 'host', True, Dwell, struct.Struct('<HI'), {'duration_us': 'us'}),
     0x13: MessageSpec('SET_HEATER', 0x13, 'host', True, SetHeater, struct.Struct('<HH'), {'voltage_mV': 'mV'}),
     0x14: MessageSpec('SET_SAMPLING', 0x14, 'host', True, SetSampling, struct.Struct('<HI'), {'period_us': 'us'}),
     0x80: MessageSpec('BOOT', 0x80, 'device', False, Boot, struct.Struct('<BBBB'), {}),
-    0x81: MessageSpec('IDENTITY', 0x81, 'device', False, Identity, struct.Struct('<BBBBIHiiIIHBHB'), {'steps_per_turn': 'step/turn', 'min_twist_steps': 'step', 'max_twist_steps': 'step', 'max_rate_steps_per_s': 'step/s', 'max_accel_steps_per_s2': 'step/s^2', 'max_heater_mV': 'mV', 'watchdog_ms': 'ms'}),
+    0x81: MessageSpec('IDENTITY', 0x81, 'device', False, Identity, struct.Struct('<BBBBIHiiIIHBHBII'), {'steps_per_turn': 'step/turn', 'min_twist_steps': 'step', 'max_twist_steps': 'step', 'max_rate_steps_per_s': 'step/s', 'max_accel_steps_per_s2': 'step/s^2', 'max_heater_mV': 'mV', 'watchdog_ms': 'ms', 'min_sample_period_us': 'us', 'fault_release_ms': 'ms'}),
     0x82: MessageSpec('ACK', 0x82, 'device', False, Ack, struct.Struct('<HBBB'), {}),
     0x83: MessageSpec('SAMPLE', 0x83, 'device', False, Sample, struct.Struct('<IQihiBHBH'), {'t_us': 'us', 'step_position': 'step', 'position_raw': 'count', 'resistance_raw': 'count', 'heater_mV': 'mV'}),
     0x84: MessageSpec('EVENT', 0x84, 'device', False, Event, struct.Struct('<QBHHi'), {'t_us': 'us'}),
-    0x85: MessageSpec('QUEUE_STATUS', 0x85, 'device', False, QueueStatus, struct.Struct('<QBBHH'), {'t_us': 'us'}),
+    0x85: MessageSpec('QUEUE_STATUS', 0x85, 'device', False, QueueStatus, struct.Struct('<QBBHHBiHHHH'), {'t_us': 'us', 'step_position': 'step'}),
 }
 
 SPEC_BY_CLASS: dict[type, MessageSpec] = {spec.cls: spec for spec in MESSAGES.values()}
