@@ -70,9 +70,10 @@ public:
     bool stopping() const { return stopping_; }
     bool position_known() const { return position_known_; }
     bool motor_released() const { return motor_released_; }
-    bool active() const {
-        return exec_ != EXEC_NONE || !queue_.empty() || heater_mV_ > 0 || period_us_ > 0 || stopping_;
-    }
+    // Something runs that the host must supervise: a segment, the queue, the heater, a stop.
+    bool active() const { return exec_ != EXEC_NONE || !queue_.empty() || heater_mV_ > 0 || stopping_; }
+    // Host silence trips the watchdog while active or sampling (the sense current is on).
+    bool watchdog_armed() const { return active() || period_us_ > 0; }
     uint8_t queue_free() const { return queue_.free(); }
     uint16_t heater_mV() const { return heater_mV_; }
     uint16_t segment() const { return segment_; }

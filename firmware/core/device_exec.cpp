@@ -207,7 +207,7 @@ void Device::check_safety(uint64_t now) {
             trip(proto::fault::TWIST_LIMIT, now, false);
         }
     }
-    if (!fault_ && active() && now - last_host_us_ >= static_cast<uint64_t>(cfg::WATCHDOG_MS) * 1000U) {
+    if (!fault_ && watchdog_armed() && now - last_host_us_ >= static_cast<uint64_t>(cfg::WATCHDOG_MS) * 1000U) {
         trip(proto::fault::WATCHDOG, now, true);
     }
     if (fault_ && !motor_released_ && !stopping_ && cfg::FAULT_RELEASE_MS > 0 &&

@@ -44,7 +44,7 @@ class ScriptedPort:
 
 def identity(**changes) -> msg.Identity:
     base = msg.Identity(msg.PROTOCOL_VERSION, 0, 1, 0, msg.CATALOGUE_HASH, 3200, -32000, 320000, 16000, 320000,
-                        12000, 16, 2000, 0)
+                        12000, 16, 2000, 0, 3000, 10000)
     return base._replace(**changes)
 
 
@@ -132,8 +132,8 @@ def test_nak_raises_with_the_status_name():
 
 def test_messages_arriving_with_the_ack_are_kept_in_order():
     port = ScriptedPort({msg.Hello: lambda f: [identity()],
-                         msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16), msg.QueueStatus(5, 16, 0, 0, 0)]})
+                         msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16), msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0)]})
     client = BenchClient(port, ack_timeout_s=0.05)
     client.connect(boot_timeout_s=0.2)
     client.command(msg.Heartbeat())
-    assert client.poll() == [msg.QueueStatus(5, 16, 0, 0, 0)]
+    assert client.poll() == [msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0)]

@@ -6,6 +6,7 @@ import pytest
 from simhost import HELLO, Host
 
 from tsa_bench.bench import BenchConfig, load_bench
+from tsa_bench.protocol import msg
 from tsa_bench.sim import SimDevice
 
 
@@ -21,8 +22,12 @@ def device(bench: BenchConfig) -> SimDevice:
 
 @pytest.fixture
 def host(device: SimDevice) -> Host:
-    """A host that has done the handshake (the BOOT and IDENTITY are consumed)."""
+    """A host that has done the handshake and declared the twist zero (SET_POSITION 0),
+    as the runner does on a device whose position is unknown (the BOOT, IDENTITY and
+    that ACK are consumed)."""
     h = Host(device)
     device.boot()
     h.send(HELLO)
+    h.send(msg.SetPosition(0))
+    h.frames.clear()
     return h

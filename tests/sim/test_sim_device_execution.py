@@ -120,14 +120,19 @@ def test_stop_mid_move(host):
     stopped = reply[1]
     assert (stopped.kind, stopped.segment, stopped.t_us) == (E.STOPPED, 2, 2_000_000)
     assert 0 < stopped.value < 50 * SPT
-    assert stopped.value == round(TrapezoidProfile(50 * SPT, RATE, ACCEL).position(2.0))
+    # it decelerates at the device's limit from where it was: value = where it comes to rest
+    profile, a_max = TrapezoidProfile(50 * SPT, RATE, ACCEL), host.dev.limits.max_accel_steps_per_s2
+    v = profile.velocity(2.0)
+    assert stopped.value == round(profile.position(2.0)) + int(v * v / (2 * a_max))
     after = host.run(1.0)
     assert not events(after)                                          # no SEGMENT_DONE, dwell dropped
-    assert all(s.step_position == stopped.value and s.motor_moving == 0 and s.heater_mV == 0
-               for s in samples(after))
+    assert all(s.heater_mV == 0 for s in samples(after))              # the heater went off at once
+    at_rest = [s for s in samples(after) if s.t_us > 2_000_000 + 1e6 * v / a_max]
+    assert at_rest and all(s.step_position == stopped.value and s.motor_moving == 0 for s in at_rest)
     status = host.send(msg.Heartbeat())[1]
-    assert (status.queue_free, status.executing, status.fault) == (16, 0, 0)
-    assert not host.dev.active
+    assert (status.queue_free, status.executing, status.fault, status.state) == (16, 0, 0, 0)
+    assert (status.step_position, host.dev.executor.heater_mV) == (stopped.value, 0)
+    assert not host.dev.active and host.dev.watchdog_armed            # only sampling still runs
 
 
 def test_clear_queue_lets_the_running_segment_finish(host):
@@ -151,8 +156,10 @@ def test_watchdog_fault_and_recovery(host):
     fault = events(seen, E.FAULT)
     assert len(fault) == 1
     assert (fault[0].t_us, fault[0].code, fault[0].segment) == (2_000_000, msg.Fault.WATCHDOG, 2)
-    assert fault[0].value == round(TrapezoidProfile(40 * SPT, RATE, ACCEL).position(2.0))
-    after = [s for s in samples(seen) if s.t_us > 2_000_000]
+    profile, a_max = TrapezoidProfile(40 * SPT, RATE, ACCEL), host.dev.limits.max_accel_steps_per_s2
+    v = profile.velocity(2.0)
+    assert fault[0].value == round(profile.position(2.0)) + int(v * v / (2 * a_max))   # a controlled stop
+    after = [s for s in samples(seen) if s.t_us > 2_000_000 + 1e6 * v / a_max]
     assert after and all(s.motor_moving == 0 and s.heater_mV == 0 and s.step_position == fault[0].value
                          for s in after)                              # sampling survives the fault
     assert host.send(msg.Heartbeat())[1].fault == msg.Fault.WATCHDOG
@@ -173,8 +180,31 @@ def test_heartbeats_keep_a_long_run_alive(host):
 
 def test_idle_device_never_trips_the_watchdog(host):
     host.send(msg.SetSampling(0, 500_000))
+    host.send(msg.SetSampling(1, 0))
     host.run(30.0, heartbeat_s=None)
     assert host.dev.fault == 0 and not host.dev.active
+
+
+def test_sampling_alone_arms_the_watchdog_and_the_release_stops_it(host):
+    """A host that leaves sampling on and vanishes: fault watchdog after watchdog_ms, and
+    fault_release_ms later sampling, the sense current and the motor are off."""
+    host.send(msg.SetSampling(0, 100_000))
+    assert host.dev.watchdog_armed and not host.dev.active
+    lim = host.dev.limits
+    seen = host.run(lim.watchdog_s + lim.fault_release_s + 1.0, heartbeat_s=None)
+    assert [e.code for e in events(seen, E.FAULT)] == [msg.Fault.WATCHDOG]
+    released = events(seen, E.MOTOR_RELEASED)
+    assert len(released) == 1 and released[0].code == msg.Fault.WATCHDOG
+    assert released[0].t_us == pytest.approx((lim.watchdog_s + lim.fault_release_s) * 1e6, abs=1)
+    assert max(s.t_us for s in samples(seen)) <= released[0].t_us   # no sample after the release
+    status = host.send(msg.Heartbeat())[1]
+    assert status.state == msg.DeviceState.POSITION_UNKNOWN | msg.DeviceState.MOTOR_RELEASED
+    assert host.ack(msg.SetPosition(0)).status == S.BAD_STATE       # the motor is off
+    host.send(msg.ClearQueue())
+    assert host.send(msg.Heartbeat())[1].state == msg.DeviceState.POSITION_UNKNOWN
+    assert host.ack(msg.MoveTo(1, SPT, RATE, ACCEL)).status == S.BAD_STATE
+    assert host.ack(msg.SetPosition(0)).status == S.OK
+    assert host.ack(msg.MoveTo(1, SPT, RATE, ACCEL)).status == S.OK
 
 
 def test_heater_alone_arms_the_watchdog(host):

@@ -17,16 +17,17 @@ SPT = 3200
 def test_boot_announcement(device):
     h = Host(device)
     device.boot()
-    assert h.send_bytes(b"") == [msg.Boot(0, 1, 0, int(msg.BootReason.EXTERNAL_RESET))]
+    assert h.send_bytes(b"") == [msg.Boot(0, 2, 0, int(msg.BootReason.POWER_ON))]   # a fresh device
 
 
 def test_hello_answers_identity_from_the_bench(device):
     assert Host(device).send(HELLO) == [msg.Identity(
-        protocol_version=msg.PROTOCOL_VERSION, fw_major=0, fw_minor=1, fw_patch=0,
+        protocol_version=msg.PROTOCOL_VERSION, fw_major=0, fw_minor=2, fw_patch=0,
         catalogue_hash=msg.CATALOGUE_HASH, steps_per_turn=3200,
         min_twist_steps=-10 * SPT, max_twist_steps=100 * SPT,       # limits in turns x steps/turn
         max_rate_steps_per_s=5 * SPT, max_accel_steps_per_s2=100 * SPT,
-        max_heater_mV=12000, queue_slots=16, watchdog_ms=2000, flags=int(msg.DeviceFlags.SIMULATED))]
+        max_heater_mV=12000, queue_slots=16, watchdog_ms=2000, flags=int(msg.DeviceFlags.SIMULATED),
+        min_sample_period_us=3000, fault_release_ms=10000)]
 
 
 @pytest.mark.parametrize("hello", [msg.Hello(msg.PROTOCOL_VERSION + 1, msg.CATALOGUE_HASH),
@@ -38,14 +39,34 @@ def test_hello_mismatch_is_refused_without_identity(device, hello):
 
 def test_commands_before_hello_are_fine(device):
     h = Host(device)
+    assert h.ack(msg.SetPosition(0)).status == S.OK
     assert h.ack(msg.MoveBy(3, SPT, 1000, 10000)).status == S.OK
+
+
+def test_position_unknown_until_set(device):
+    """A fresh device does not know its twist: moves are refused until SET_POSITION."""
+    h = Host(device)
+    device.boot()
+    h.send(HELLO)
+    assert h.send(msg.Heartbeat())[1].state == msg.DeviceState.POSITION_UNKNOWN
+    assert h.ack(msg.MoveTo(1, SPT, 1000, 10000)).status == S.BAD_STATE
+    assert h.ack(msg.MoveBy(1, SPT, 1000, 10000)).status == S.BAD_STATE
+    assert h.ack(msg.Dwell(1, 1000)).status == S.OK                  # the rest works
+    assert h.ack(msg.SetPosition(100 * SPT + 1)).status == S.LIMIT_EXCEEDED
+    assert h.ack(msg.SetPosition(5 * SPT)).status == S.OK
+    status = h.send(msg.Heartbeat())[1]
+    assert (status.state, status.step_position) == (0, 5 * SPT)
+    assert h.ack(msg.MoveBy(2, SPT, 1000, 10000)).status == S.OK
+    assert h.ack(msg.SetPosition(0)).status == S.BAD_STATE            # a move runs
+    h.run_until(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.QUEUE_EMPTY)
+    assert device.executor.position_steps == 6 * SPT
 
 
 def test_every_command_is_acked_and_heartbeat_gets_queue_status(host):
     reply = host.send(msg.Heartbeat(), seq=41)
-    assert reply == [msg.Ack(41, 0x02, S.OK, 16), msg.QueueStatus(0, 16, 0, 0xFFFF, 0)]
+    assert reply == [msg.Ack(41, 0x02, S.OK, 16), msg.QueueStatus(0, 16, 0, 0xFFFF, 0, 0, 0, 0, 0, 0, 0)]
     for m in (msg.Stop(), msg.ClearQueue(), msg.SimSetLoad(500_000), msg.Dwell(0, 0), msg.SetHeater(1, 0),
-              msg.SetSampling(2, 0), msg.MoveTo(3, 0, 100, 100), msg.MoveBy(4, 0, 100, 100)):
+              msg.SetSampling(2, 0), msg.MoveTo(3, 0, 100, 100), msg.MoveBy(4, 0, 100, 100), msg.SetPosition(0)):
         reply = host.send(m, seq=100)
         assert isinstance(reply[0], msg.Ack) and reply[0].status == S.OK, (m, reply)
         assert reply[0].acked_seq == 100 and reply[0].acked_id == msg.SPEC_BY_CLASS[type(m)].id

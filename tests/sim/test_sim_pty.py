@@ -54,7 +54,8 @@ def test_handshake_move_and_samples_over_a_pty(pty_path):
         port.write(encode(HELLO, 1))
         ident = read_until(port, dec, lambda m: isinstance(m, msg.Identity))[-1]
         assert ident.flags & msg.DeviceFlags.SIMULATED
-        port.write(encode(msg.SetSampling(0, 10_000), 2) + encode(msg.MoveBy(1, 3200, 16_000, 320_000), 3))
+        port.write(encode(msg.SetPosition(0), 5) + encode(msg.SetSampling(0, 10_000), 2)
+                   + encode(msg.MoveBy(1, 3200, 16_000, 320_000), 3))
         seen = read_until(port, dec, lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.QUEUE_EMPTY
                           and m.segment == 1)
         acks = [m for m in seen if isinstance(m, msg.Ack) and m.acked_seq in (2, 3)]

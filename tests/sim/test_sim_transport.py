@@ -48,7 +48,7 @@ def test_serial_for_url_gives_a_sim_port_that_boots():
     with serial.serial_for_url("sim://", timeout=0.1) as port:
         assert isinstance(port, Serial)
         host = PortHost(port)
-        assert host.read_until(lambda m: isinstance(m, msg.Boot))[0].reason == msg.BootReason.EXTERNAL_RESET
+        assert host.read_until(lambda m: isinstance(m, msg.Boot))[0].reason == msg.BootReason.POWER_ON
         host.send(HELLO)
         ident = host.read_until(lambda m: isinstance(m, msg.Identity))[-1]
         assert ident.flags & msg.DeviceFlags.SIMULATED and ident.steps_per_turn == 3200
@@ -119,6 +119,7 @@ def test_silent_host_trips_the_watchdog_through_the_port():
 def test_samples_and_a_move_through_the_port():
     port = serial.serial_for_url("sim://?seed=5", timeout=0.1)
     host = PortHost(port)
+    host.send(msg.SetPosition(0))
     host.send(msg.SetSampling(0, 10_000))
     host.send(msg.MoveBy(1, 3200, 16_000, 320_000))
     seen = host.read_until(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY and m.segment == 1,

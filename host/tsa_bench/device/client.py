@@ -177,3 +177,23 @@ class BenchClient:
             self.command(msg.Stop(), check=False)
         except (NoAcknowledgement, ConnectionLost):
             pass
+
+    # -- position -----------------------------------------------------------
+    def status(self) -> msg.QueueStatus:
+        """HEARTBEAT and the QUEUE_STATUS that answers it (state bits, step position,
+        error counters). The status also stays in the inbox for ``poll()``."""
+        self.command(msg.Heartbeat())
+        for m in reversed(self._inbox):
+            if isinstance(m, msg.QueueStatus):
+                return m
+        found = self._await(lambda m: isinstance(m, msg.QueueStatus), self.ack_timeout_s * (self.retries + 1))
+        if found is None:
+            raise NoAcknowledgement(f"no QUEUE_STATUS after HEARTBEAT on {self._port_name()}")
+        self._inbox.append(found)
+        return found  # type: ignore[return-value]
+
+    def set_position(self, steps: int) -> msg.Ack:
+        """SET_POSITION: declare where the motor is now (steps; 0 = strings untwisted).
+        The device refuses it while a move runs or waits (bad_state) or outside its
+        twist limits (limit_exceeded): raises :class:`CommandRefused`."""
+        return self.command(msg.SetPosition(int(steps)))

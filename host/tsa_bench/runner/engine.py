@@ -26,6 +26,7 @@ from tsa_bench.runner.documents import (
     SAMPLE_COLUMNS, EventRecord, RunConsumer, RunStart, RunStop, SampleBlock, SegmentRecord,
 )
 from tsa_bench.runner.operator import Operator
+from tsa_bench.runner.position import PositionUnknown, settle_position
 
 NO_SEGMENT = 0xFFFF           # wire value for commands outside the plan (setup, teardown)
 WIRE_SEGMENTS = 0xFFFF        # plan indices travel modulo this; the host unwraps them
@@ -57,6 +58,10 @@ def check_plan_against_device(plan: Plan, ident: msg.Identity) -> None:
     vmax = plan.summary().voltage_range_V[1]
     if round(vmax * 1000) > ident.max_heater_mV:
         problems.append(f"heater {vmax:g} V exceeds the device's {ident.max_heater_mV / 1000:g} V")
+    pmin = plan.summary().sampling_period_range_s[0]
+    if 0 < round(pmin * 1e6) < ident.min_sample_period_us:
+        problems.append(f"sampling period {pmin * 1000:g} ms is shorter than the device's "
+                        f"{ident.min_sample_period_us / 1000:g} ms")
     for seg in plan.segments:
         a = seg.action
         if isinstance(a, Move) and (round(a.rate_turns_per_s * spt) > ident.max_rate_steps_per_s
@@ -95,6 +100,7 @@ class Runner:
         # hanging mass (g) as the protocol declares it; NaN = not declared (unknown)
         self._load_g = float(plan.load_g) if plan.load_g is not None else float("nan")
         self._prompt_segment: int | None = None
+        self._last_status: msg.QueueStatus | None = None
         self._rows: list[tuple] = []
         self._last_block_wall = time.monotonic()
         self._last_counter: int | None = None
@@ -191,6 +197,10 @@ class Runner:
         self._command(msg.Heartbeat())
         while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
             self._pump()
+        try:                                # moves need a known twist zero
+            settle_position(self.client, self.operator, self._last_status, self.spt, self._event)
+        except PositionUnknown as exc:
+            raise RunFailed(str(exc)) from None
         if self.simulated and plan_load_known(self._load_g):
             self._command(msg.SimSetLoad(round(self._load_g * 1000)))
         self._queued(msg.SetSampling(NO_SEGMENT, round(self.plan.sampling_period_s * 1e6)), "set sampling")
@@ -294,6 +304,7 @@ class Runner:
         elif isinstance(m, msg.Event):
             self._on_event(m)
         elif isinstance(m, msg.QueueStatus):
+            self._last_status = m
             self._now_us = max(self._now_us, m.t_us)
             if self._t0_us is None:
                 self._t0_us = m.t_us

@@ -13,28 +13,44 @@ implements it:
 * HELLO answers IDENTITY and resets the duplicate filter; a protocol version or
   catalogue hash mismatch answers ACK ``bad_argument`` instead. Commands before HELLO
   are accepted.
+* It boots as from power-on (BOOT reason power_on) with its step position unknown
+  (QUEUE_STATUS.state position_unknown): MOVE_TO/MOVE_BY are refused ``bad_state`` until
+  SET_POSITION declares the position (refused ``bad_state`` while a move runs, waits or
+  the motor is stopping or released, ``limit_exceeded`` outside the twist limits).
 * Every other command gets ACK(acked_seq, acked_id, status, queue_free) before any
   EVENT it causes; HEARTBEAT is also answered with QUEUE_STATUS. A frame repeating the
   seq and id of the last *accepted* command is not executed again: the stored ACK is
   re-sent (plus a fresh QUEUE_STATUS for HEARTBEAT). A refused command had no effect,
   so its repetition is simply evaluated again (a QUEUE_FULL retry can succeed).
-* Queued commands are checked in this order: latched fault -> ``bad_state``; zero
-  rate/accel or a sampling period in 1..999 us -> ``bad_argument``; rate, accel,
+* Queued commands are checked in this order: latched fault or (moves) position
+  unknown -> ``bad_state``; zero rate/accel or a sampling period below
+  ``min_sample_period_us`` -> ``bad_argument``; rate, accel,
   heater, MOVE_TO target or MOVE_BY projected target beyond the limits ->
   ``limit_exceeded``; no free slot -> ``queue_full``.
-* STOP halts the motor where it is, heater off, queue cleared (the running segment gets
-  no SEGMENT_DONE), EVENT STOPPED. CLEAR_QUEUE drops waiting commands and clears a
-  latched fault (EVENT FAULT_CLEARED, code = the fault). Watchdog: while
-  :attr:`SimDevice.active`, ``watchdog_ms`` of virtual time without a valid host frame
-  halts like STOP and latches fault WATCHDOG (EVENT FAULT).
+* STOP: heater off, queue cleared (the running segment gets no SEGMENT_DONE), and the
+  motor decelerates at ``max_accel_steps_per_s2`` from its present speed (or finishes
+  the move when that comes sooner); EVENT STOPPED at once, its value the position the
+  motor comes to rest at; commands queued meanwhile start when it is at rest.
+  CLEAR_QUEUE drops waiting commands and clears a latched fault (EVENT FAULT_CLEARED,
+  code = the fault), re-energizing a released motor. Watchdog: while
+  :attr:`SimDevice.watchdog_armed` (a segment executing or queued, the heater on, a stop
+  under way, or sampling on), ``watchdog_ms`` of virtual time without a valid host frame stops
+  like STOP and latches fault WATCHDOG (EVENT FAULT, value = the rest position). A fault
+  still latched ``fault_release_ms`` later releases the motor: position unknown,
+  sampling and the sense current off, EVENT MOTOR_RELEASED (code = the fault).
 * SAMPLE every sampling period on a grid anchored where SET_SAMPLING ran, first one
-  period later; sampling survives STOP and faults. The resistance is there only when
+  period later, stamped with its grid time (the simulated conversions start on time);
+  ``heater_mV`` is the voltage the PWM applies (:mod:`tsa_bench.sim.heater`, the
+  firmware's rounding), which also heats the plant; sampling survives STOP and faults
+  (until the motor release). The resistance is there only when
   the CS5513 has a settled word in time (:class:`~tsa_bench.sim.sensors.ResistanceTiming`:
   not while the heater is on, not in the ~80 ms after the sense current comes on unless
   the period leaves time, not at periods shorter than a conversion); otherwise the
   sample keeps its slot and says resistance_not_measured.
-* Every EVENT's ``value`` is the step position at that instant; ``code`` is the fault
-  for FAULT and FAULT_CLEARED, else 0.
+* Every EVENT's ``value`` is the step position at that instant (the rest position for
+  STOPPED and FAULT); ``code`` is the fault for FAULT, FAULT_CLEARED and MOTOR_RELEASED,
+  else 0. QUEUE_STATUS carries the state bits and the position; its error counters
+  (step underruns, UART, I2C) stay 0: the simulation has no such hardware.
 * Undecodable frames are dropped and counted (:attr:`frame_errors`); a valid frame
   with an id this device does not accept gets ``unknown_message``, a wrong payload
   length ``bad_length``.
@@ -50,20 +66,20 @@ from tsa_bench.protocol import catalogue as msg
 from tsa_bench.protocol.codec import encode
 from tsa_bench.protocol.framing import FrameDecoder, RawFrame, encode_raw
 from tsa_bench.sim.executor import NO_SEGMENT, QueuedCommand, SegmentExecutor
-from tsa_bench.sim.identity import SIM_FIRMWARE_VERSION, DeviceLimits, device_limits, identity_message
+from tsa_bench.sim.identity import (
+    MIN_SAMPLING_PERIOD_US, SIM_FIRMWARE_VERSION, DeviceLimits, device_limits, identity_message,
+)
 from tsa_bench.sim.plant import Plant, plant_from_config
 from tsa_bench.sim.sensors import ResistanceTiming, SimSensors
 
 __all__ = ["SimDevice", "NO_SEGMENT", "MIN_SAMPLING_PERIOD_US"]
-
-#: Shortest nonzero sampling period the device accepts (us).
-MIN_SAMPLING_PERIOD_US = 1000
 
 _S = msg.Status
 _SAMPLE_SPEC = msg.MESSAGES[0x83]
 _SAMPLE_PACK = _SAMPLE_SPEC.struct.pack
 _NOT_MEASURED = int(msg.AdcFlags.RESISTANCE_NOT_MEASURED)
 _QUEUED_TYPES = (msg.MoveTo, msg.MoveBy, msg.Dwell, msg.SetHeater, msg.SetSampling)
+_STATE = msg.DeviceState
 
 
 class SimDevice:
@@ -80,6 +96,9 @@ class SimDevice:
         self.executor = SegmentExecutor(self.limits.queue_slots, self._emit_event, self._set_sampling)
         self.now_s = 0.0
         self.fault = 0
+        self.position_known = False      # power-on: the twist zero must be declared
+        self.motor_released = False
+        self._fault_since_s = 0.0
         self.duplicates = 0              # repeated commands answered from the filter
         self._watchdog_s = self.limits.watchdog_s
         self._turns_per_step = 1.0 / self.limits.steps_per_turn
@@ -105,9 +124,24 @@ class SimDevice:
 
     @property
     def active(self) -> bool:
-        """Commands queued, a segment executing, or the heater on (the watchdog is armed)."""
+        """Commands queued, a segment executing, the heater on or a stop under way."""
         ex = self.executor
-        return ex.executing or ex.queued > 0 or ex.heater_mV > 0
+        return ex.executing or ex.queued > 0 or ex.heater_mV > 0 or ex.stopping
+
+    @property
+    def watchdog_armed(self) -> bool:
+        """Active, or sampling (the sense current is on): host silence trips the watchdog."""
+        return self.active or self._period_us > 0
+
+    @property
+    def state(self) -> int:
+        """QUEUE_STATUS.state bits (device_state)."""
+        s = 0 if self.position_known else int(_STATE.POSITION_UNKNOWN)
+        if self.motor_released:
+            s |= int(_STATE.MOTOR_RELEASED)
+        if self.executor.stopping:
+            s |= int(_STATE.STOPPING)
+        return s
 
     @property
     def sampling_period_us(self) -> int:
@@ -127,8 +161,8 @@ class SimDevice:
         self.plant.set_load(load_g)
 
     def boot(self) -> None:
-        """Announce a reset: queue BOOT (reason EXTERNAL_RESET, the DTR pulse of opening the port)."""
-        self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(msg.BootReason.EXTERNAL_RESET)))
+        """Announce the start: queue BOOT (reason POWER_ON: a fresh device, position unknown)."""
+        self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(msg.BootReason.POWER_ON)))
 
     def receive(self, data: bytes) -> None:
         """Handle bytes from the host at the current virtual time; replies are queued."""
@@ -156,12 +190,15 @@ class SimDevice:
         out = self._out
         limit = len(out) + max_output_bytes
         urgent_before = self._urgent_sent
+        release_s = self.limits.fault_release_s
         while self._urgent_sent == urgent_before and len(out) < limit:
             t_seg = ex.end_s
             t_smp = self._next_sample_s
-            armed = ex.executing or ex.queued or ex.heater_mV
+            armed = self.watchdog_armed and not self.fault
             t_wd = self._last_host_s + self._watchdog_s if armed else math.inf
-            t = min(t_seg, t_smp, t_wd)
+            releasing = self.fault and not self.motor_released and release_s > 0 and not ex.stopping
+            t_rel = self._fault_since_s + release_s if releasing else math.inf
+            t = min(t_seg, t_smp, t_wd, t_rel)
             if t > end or t == math.inf:
                 if end != math.inf:
                     self.now_s = end
@@ -172,6 +209,8 @@ class SimDevice:
                 ex.finish()
             elif t_wd <= t:
                 self._trip(msg.Fault.WATCHDOG)
+            elif t_rel <= t:
+                self._release_motor()
             else:
                 self._take_sample()
         return self.now_s - start
@@ -269,16 +308,27 @@ class SimDevice:
 
     def _queue_status(self) -> msg.QueueStatus:
         ex = self.executor
-        return msg.QueueStatus(self._t_us(self.now_s), ex.queue_free, int(ex.executing), ex.segment, self.fault)
+        position, _ = ex.position_at(self.now_s)
+        return msg.QueueStatus(self._t_us(self.now_s), ex.queue_free, int(ex.executing), ex.segment, self.fault,
+                               self.state, position, 0, 0, 0, 0)
 
     def _check(self, message: NamedTuple) -> msg.Status:
+        lim = self.limits
+        kind = type(message)
+        if kind is msg.SetPosition:
+            ex = self.executor
+            if ex.move_waiting or ex.stopping or self.motor_released:
+                return _S.BAD_STATE
+            if not lim.min_twist_steps <= message.position_steps <= lim.max_twist_steps:
+                return _S.LIMIT_EXCEEDED
+            return _S.OK
         if not isinstance(message, _QUEUED_TYPES):
             return _S.OK
         if self.fault:
             return _S.BAD_STATE
-        lim = self.limits
-        kind = type(message)
         if kind is msg.MoveTo or kind is msg.MoveBy:
+            if not self.position_known:
+                return _S.BAD_STATE
             if message.rate_steps_per_s == 0 or message.accel_steps_per_s2 == 0:
                 return _S.BAD_ARGUMENT
             if message.rate_steps_per_s > lim.max_rate_steps_per_s \
@@ -292,7 +342,7 @@ class SimDevice:
             if message.voltage_mV > lim.max_heater_mV:
                 return _S.LIMIT_EXCEEDED
         elif kind is msg.SetSampling:
-            if 0 < message.period_us < MIN_SAMPLING_PERIOD_US:
+            if 0 < message.period_us < lim.min_sample_period_us:
                 return _S.BAD_ARGUMENT
         if self.executor.queue_free <= 0:
             return _S.QUEUE_FULL
@@ -303,12 +353,16 @@ class SimDevice:
         if kind is msg.Heartbeat:
             self._send(self._queue_status())
         elif kind is msg.Stop:
-            position = self.executor.halt(self.now_s)
-            self._emit_event(self.now_s, int(msg.EventKind.STOPPED), self.executor.segment, position)
+            rest = self.executor.stop(self.now_s, self.limits.max_accel_steps_per_s2)
+            self._emit_event(self.now_s, int(msg.EventKind.STOPPED), self.executor.segment, rest)
+        elif kind is msg.SetPosition:
+            self.executor.set_position(message.position_steps)
+            self.position_known = True
         elif kind is msg.ClearQueue:
             self.executor.clear_queue()
             if self.fault:
                 code, self.fault = self.fault, 0
+                self.motor_released = False      # energized again; the position stays unknown
                 position, _ = self.executor.position_at(self.now_s)
                 self._emit_event(self.now_s, int(msg.EventKind.FAULT_CLEARED), self.executor.segment, position,
                                  code)
@@ -319,11 +373,32 @@ class SimDevice:
             self.executor.push(command, self.now_s)
 
     def inject_fault(self, fault: msg.Fault) -> None:
-        """Latch ``fault`` now, exactly as a detected hardware fault would (motor halted,
-        heater off, queue cleared, EVENT fault): for testing how hosts handle faults."""
-        self._trip(fault)
+        """Latch ``fault`` now, exactly as a detected hardware fault would (motor halted
+        at once - a move cut short leaves the position unknown -, heater off, queue
+        cleared, EVENT fault): for testing how hosts handle faults."""
+        ex = self.executor
+        moving = ex.position_at(self.now_s)[1]
+        position = ex.halt(self.now_s)
+        if moving:
+            self.position_known = False
+        self._latch(fault, position)
 
     def _trip(self, fault: msg.Fault) -> None:
-        position = self.executor.halt(self.now_s)
+        """The host watchdog: a controlled stop, then the fault latched."""
+        rest = self.executor.stop(self.now_s, self.limits.max_accel_steps_per_s2)
+        self._latch(fault, rest)
+
+    def _latch(self, fault: msg.Fault, position: int) -> None:
         self.fault = int(fault)
+        self._fault_since_s = self.now_s
         self._emit_event(self.now_s, int(msg.EventKind.FAULT), self.executor.segment, position, int(fault))
+
+    def _release_motor(self) -> None:
+        """The fault outlasted ``fault_release_ms``: motor off (position unknown), sampling
+        and the sense current off."""
+        self.motor_released = True
+        self.position_known = False
+        self._set_sampling(0, self.now_s)
+        position, _ = self.executor.position_at(self.now_s)
+        self._emit_event(self.now_s, int(msg.EventKind.MOTOR_RELEASED), self.executor.segment, position,
+                         self.fault)

@@ -1,13 +1,15 @@
 """The simulated device's identity and limits, in the units the firmware works in.
 
 Units: twist in microsteps, rate in step/s, acceleration in step/s^2, heater in mV,
-watchdog in ms.
+watchdog and fault release in ms, sampling period in us.
 
 Contract: :func:`device_limits` converts a :class:`BenchConfig` (turns, V, s) to the
 integers a firmware build would carry, rounding to the nearest unit and saturating to
 the wire type; an unlimited (``None``) bench limit becomes the wire type's extreme.
 The simulated device enforces exactly these integers, and reports them in IDENTITY,
-so host and device agree to the step.
+so host and device agree to the step. The shortest sampling period and the fault
+release time are the firmware's (firmware/config.h; a test checks they agree): they are
+properties of the device, not of the bench file.
 """
 
 from __future__ import annotations
@@ -18,7 +20,11 @@ from tsa_bench.bench.config import BenchConfig
 from tsa_bench.protocol import catalogue as msg
 
 #: Firmware version the simulation reports (major, minor, patch).
-SIM_FIRMWARE_VERSION = (0, 1, 0)
+SIM_FIRMWARE_VERSION = (0, 2, 0)
+#: Shortest nonzero sampling period the device accepts (us), firmware MIN_SAMPLE_PERIOD_US.
+MIN_SAMPLING_PERIOD_US = 3000
+#: A latched fault releases the motor after this long (ms), firmware FAULT_RELEASE_MS.
+FAULT_RELEASE_MS = 10000
 
 I32_MIN, I32_MAX = -(2 ** 31), 2 ** 31 - 1
 U32_MAX, U16_MAX, U8_MAX = 2 ** 32 - 1, 2 ** 16 - 1, 2 ** 8 - 1
@@ -42,10 +48,17 @@ class DeviceLimits:
     max_heater_mV: int
     queue_slots: int
     watchdog_ms: int
+    min_sample_period_us: int = MIN_SAMPLING_PERIOD_US
+    fault_release_ms: int = FAULT_RELEASE_MS
 
     @property
     def watchdog_s(self) -> float:
         return self.watchdog_ms / 1000.0
+
+    @property
+    def fault_release_s(self) -> float:
+        """0.0 means never."""
+        return self.fault_release_ms / 1000.0
 
 
 def device_limits(bench: BenchConfig) -> DeviceLimits:
@@ -77,5 +90,6 @@ def identity_message(limits: DeviceLimits) -> msg.Identity:
         min_twist_steps=limits.min_twist_steps, max_twist_steps=limits.max_twist_steps,
         max_rate_steps_per_s=limits.max_rate_steps_per_s, max_accel_steps_per_s2=limits.max_accel_steps_per_s2,
         max_heater_mV=limits.max_heater_mV, queue_slots=limits.queue_slots, watchdog_ms=limits.watchdog_ms,
-        flags=int(msg.DeviceFlags.SIMULATED),
+        flags=int(msg.DeviceFlags.SIMULATED), min_sample_period_us=limits.min_sample_period_us,
+        fault_release_ms=limits.fault_release_ms,
     )
