@@ -20,15 +20,16 @@ NOT_MEASURED = int(msg.AdcFlags.RESISTANCE_NOT_MEASURED)
 
 
 def normalise(m):
-    """What must agree between firmware and simulation (not times, sensors or versions)."""
+    """What must agree between firmware and simulation (not times, sensors, versions or
+    the hardware error counters)."""
     if isinstance(m, msg.Ack):
         return ("ACK", m.acked_id, msg.Status(m.status).name, m.queue_free)
     if isinstance(m, msg.Identity):
         return ("IDENTITY", m.protocol_version, m.catalogue_hash, m.steps_per_turn, m.min_twist_steps,
                 m.max_twist_steps, m.max_rate_steps_per_s, m.max_accel_steps_per_s2, m.max_heater_mV,
-                m.queue_slots, m.watchdog_ms)
+                m.queue_slots, m.watchdog_ms, m.min_sample_period_us, m.fault_release_ms)
     if isinstance(m, msg.QueueStatus):
-        return ("QUEUE_STATUS", m.queue_free, m.executing, m.segment, m.fault)
+        return ("QUEUE_STATUS", m.queue_free, m.executing, m.segment, m.fault, m.state)
     if isinstance(m, msg.Event):
         return ("EVENT", msg.EventKind(m.kind).name, m.segment, m.code)
     return (type(m).__name__,)
@@ -102,7 +103,8 @@ class Exchange:
 
 
 def handshake(ex: Exchange) -> list:
-    return ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH))
+    """HELLO, then the twist zero (the device boots with its position unknown)."""
+    return ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH)) + ex.send(msg.SetPosition(0))
 
 
 def every_command_and_refusal(ex: Exchange) -> list:
@@ -113,12 +115,17 @@ def every_command_and_refusal(ex: Exchange) -> list:
     log.append(ex.send(msg.Heartbeat()))
     log.append(ex.send(raw=encode_raw(0x7E, 5, b"\x01\x02")))                  # unknown id
     log.append(ex.send(raw=encode_raw(0x10, 6, b"\x01\x02\x03")))             # bad length
+    log.append(ex.send(msg.Heartbeat()))                                      # state: position unknown
+    log.append(ex.send(msg.MoveTo(1, 1000, 1000, 1000)))                      # refused: position unknown
+    log.append(ex.send(msg.SetPosition(10_000_000)))                          # beyond the twist limits
+    log.append(ex.send(msg.SetPosition(0)))                                   # the twist zero
     log.append(ex.send(msg.MoveTo(1, 10_000_000, 1000, 1000)))                # beyond max twist
     log.append(ex.send(msg.MoveTo(1, 1000, 0, 1000)))                         # zero rate
     log.append(ex.send(msg.MoveTo(1, 1000, 10**6, 1000)))                     # rate beyond max
     log.append(ex.send(msg.MoveBy(1, -10**6, 1000, 1000)))                    # projected below min
     log.append(ex.send(msg.SetHeater(1, 60_000)))                             # heater beyond max
     log.append(ex.send(msg.SetSampling(1, 500)))                              # period too short
+    log.append(ex.send(msg.SetSampling(1, 2999)))                             # below the device's floor
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # starts at once
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # duplicate: same ACK again
     for i in range(17):                                                        # fill the queue, then one more
@@ -152,6 +159,7 @@ def stop_during_move(ex: Exchange) -> dict:
     """STOP while the motor turns: halted where it was, queue empty, no SEGMENT_DONE."""
     log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000)), ex.send(msg.MoveTo(2, 32_000, 3_200, 32_000))]
     ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.motor_moving and m.step_position > 1600, 30)
+    log.append(ex.send(msg.SetPosition(0)))                                   # refused: a move runs
     log.append(ex.send(msg.Stop()))
     stop_at = len(ex.samples)
     ex.wait_device_s(0.3)
@@ -210,3 +218,61 @@ def short_period(ex: Exchange) -> dict:
     settled = ex.samples[20:]
     measured = sum(not s.adc_flags & NOT_MEASURED for s in settled) / len(settled)
     return {"log": log, "continuous": _counters_continuous(ex.samples), "measured_fraction": measured}
+
+
+def stop_at_speed(ex: Exchange) -> dict:
+    """STOP while cruising at the top rate (16,000 steps/s): the motor decelerates at the
+    device's acceleration limit (320,000 steps/s^2: 400 steps, 50 ms) to the position
+    EVENT stopped announces at once, instead of stopping dead (and losing steps)."""
+    log = [handshake(ex), ex.send(msg.SetSampling(1, 10_000)), ex.send(msg.MoveTo(2, 160_000, 16_000, 320_000))]
+    ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.step_position > 16_000, 30)
+    before = ex.samples[-1]
+    log.append([r for r in ex.send(msg.Stop()) if r[0] != "EVENT"])           # ACK (the EVENT may trail it)
+    ex.wait_device_s(0.3)
+    stopped = [e for e in ex.events if e.kind == msg.EventKind.STOPPED]
+    log.append(ex.send(msg.Heartbeat()))
+    after = [s for s in ex.samples if s.t_us > before.t_us]
+    rest = stopped[0].value if stopped else None
+    moving_after = [s for s in after if s.motor_moving]
+    return {"log": log, "stopped_once": len(stopped) == 1,
+            "coasted_steps": (rest - before.step_position) if rest is not None else None,
+            "ends_at_rest_value": bool(after) and after[-1].step_position == rest and not after[-1].motor_moving,
+            "decelerated_for_s": (moving_after[-1].t_us - before.t_us) * 1e-6 if moving_after else 0.0}
+
+
+HEATER_REQUESTS_MV = (2000, 1000, 3300, 7777, 12000, 300)
+
+
+def heater_applied(ex: Exchange) -> dict:
+    """Each SAMPLE reports the heater voltage the PWM applies for a request (the duty
+    rounding, never the request itself)."""
+    log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000))]
+    reported = []
+    for i, mV in enumerate(HEATER_REQUESTS_MV):
+        log.append(ex.send(msg.SetHeater(2 + i, mV)))
+        ex.wait_device_s(0.1)
+        reported.append(ex.samples[-1].heater_mV)
+    log.append(ex.send(msg.SetHeater(20, 0)))
+    ex.wait_device_s(0.1)
+    return {"log": log, "reported_mV": reported, "off_mV": ex.samples[-1].heater_mV}
+
+
+def fault_release(ex: Exchange, timeout_s: float = 120.0) -> dict:
+    """A host that vanishes while sampling: fault watchdog after watchdog_ms, and
+    fault_release_ms later the motor is released, sampling and the sense current go off,
+    the position is unknown; CLEAR_QUEUE energizes the motor again."""
+    log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000))]
+    ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.MOTOR_RELEASED, timeout_s,
+                heartbeat=False)
+    released = [e for e in ex.events if e.kind == msg.EventKind.MOTOR_RELEASED][0]
+    fault = [e for e in ex.events if e.kind == msg.EventKind.FAULT][0]
+    last_sample_us = max(s.t_us for s in ex.samples)
+    log.append(ex.send(msg.Heartbeat()))
+    log.append(ex.send(msg.SetPosition(0)))                                   # refused: motor released
+    log.append(ex.send(msg.ClearQueue()))
+    log.append(ex.send(msg.Heartbeat()))
+    log.append(ex.send(msg.SetPosition(0)))
+    log.append(ex.send(msg.Heartbeat()))
+    return {"log": log, "fault_code": fault.code, "released_code": released.code,
+            "release_after_fault_s": (released.t_us - fault.t_us) * 1e-6,
+            "samples_after_release": last_sample_us > released.t_us}

@@ -82,3 +82,30 @@ steps:
     assert np.allclose(turns[seg == 1], 10) and np.allclose(turns[seg == 7], 6)
     assert np.all(np.isnan(resistance[heater > 0])) and np.all(np.isfinite(resistance[heater == 0]))
     assert stop.samples_lost == 0
+
+
+@pytest.mark.parametrize("scenario", ["stop_at_speed", "heater_applied"])
+def test_firmware_core_agrees_on_the_new_behaviours(native_binary, scenario):
+    """The controlled stop and the applied heater voltage, on the firmware core built
+    natively against the simulated device."""
+    from tests import conformance_scenarios as sc
+
+    run = getattr(sc, scenario)
+    sim = run(Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0))
+    fw_port = NativeFirmwarePort(native_binary, "--virtual")
+    try:
+        fw_port.read(64)  # its BOOT
+        fw = run(Exchange(fw_port, settle_s=0.05, first_reply_s=1.0))
+    finally:
+        fw_port.close()
+    assert fw["log"] == sim["log"]
+    if scenario == "stop_at_speed":
+        for obs in (sim, fw):
+            assert obs["stopped_once"] and obs["ends_at_rest_value"]
+            assert 300 <= obs["coasted_steps"] <= 700          # ~400 steps of deceleration (+ sample lag)
+    else:
+        from tsa_bench.sim.heater import applied_mV
+
+        assert fw["reported_mV"] == sim["reported_mV"] == [applied_mV(v) for v in sc.HEATER_REQUESTS_MV]
+        assert sim["reported_mV"][0] == 1984 and sim["reported_mV"][1] == 992   # 2 V, 1 V: not off, not 2.12 V
+        assert fw["off_mV"] == sim["off_mV"] == 0

@@ -44,3 +44,25 @@ def test_simulated_bench_reports_the_same_identity_as_the_firmware(repo_root):
             ident.max_accel_steps_per_s2, ident.max_heater_mV, ident.queue_slots, ident.watchdog_ms) == (
         c["STEPS_PER_TURN"], c["MIN_TWIST_STEPS"], c["MAX_TWIST_STEPS"], c["MAX_RATE_STEPS_PER_S"],
         c["MAX_ACCEL_STEPS_PER_S2"], c["MAX_HEATER_MV"], c["QUEUE_SLOTS"], c["WATCHDOG_MS"])
+
+
+def test_simulated_device_constants_are_the_firmware_ones(repo_root):
+    """The simulated device mirrors device properties no bench file holds: the sampling
+    floor, the fault release time and the heater's duty scale."""
+    from tsa_bench.sim import heater, identity
+
+    c = firmware_constants(repo_root)
+    assert identity.MIN_SAMPLING_PERIOD_US == c["MIN_SAMPLE_PERIOD_US"]
+    assert identity.FAULT_RELEASE_MS == c["FAULT_RELEASE_MS"]
+    assert heater.HEATER_SUPPLY_MV == c["HEATER_SUPPLY_MV"]
+    assert heater.MAX_HEATER_MV == c["MAX_HEATER_MV"]
+    scale = (repo_root / "firmware" / "drivers" / "heater_dither.h").read_text()
+    assert f"HEATER_DUTY_STEPS = {heater.DUTY_STEPS};" in scale
+    ident = _sim_identity()
+    assert (ident.min_sample_period_us, ident.fault_release_ms) == (c["MIN_SAMPLE_PERIOD_US"], c["FAULT_RELEASE_MS"])
+
+
+def _sim_identity():
+    from tsa_bench.sim.device import SimDevice
+
+    return SimDevice(load_bench(None), seed=0).identity
