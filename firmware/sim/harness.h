@@ -2,10 +2,11 @@
 //
 // Contract. One `struct harness` holds the simulated ATmega2560 and every emulated
 // part of the rig wired to it (hal/pins.h is the wiring). Each part is a module with
-// an *_attach() that registers its simavr IRQ hooks and a *_report() that writes its
-// figures into the JSON summary. Times are AVR cycles (16 MHz) unless a name says
-// otherwise. Plant values come from the host's Python plant over plant_link (one
-// source of plant truth); nothing here models the strings.
+// an *_attach() that registers its simavr IRQ hooks, a *_reset() for when the AVR
+// resets (the parts themselves keep their state; simavr drops every cycle timer), and
+// figures it leaves in `struct harness` for the JSON summary. Times are AVR cycles
+// (16 MHz) unless a name says otherwise. Plant values come from the host's Python plant
+// over plant_link (one source of plant truth); nothing here models the strings.
 #pragma once
 #include <stdint.h>
 #include <stdio.h>
@@ -13,6 +14,8 @@
 #include <sim_avr.h>
 
 #define HZ_CPU 16000000.0
+#define HEATER_MAX_PERIODS 32
+#define MAX_RESETS 64
 
 struct plant_link;
 
@@ -21,6 +24,7 @@ struct drive_state {
     int32_t steps;                 // signed step count (DIR high = +1), enabled pulses only
     uint64_t steps_total;          // every enabled rising edge
     uint64_t steps_while_disabled; // rising edges with /ENABLE high (the motor ignores them)
+    uint64_t steps_backdriven;     // steps the loaded strings turned a released motor back
     uint64_t pulse_width_violations;   // STEP high or low < 1 us
     uint64_t dir_setup_violations;     // DIR changed < 200 ns before a STEP rising edge
     uint64_t dir_hold_violations;      // DIR changed < 200 ns after a STEP rising edge
@@ -31,24 +35,38 @@ struct drive_state {
     int step_level, dir_level, enabled;
     int interlock_active;
     int sense_on;                  // AD8276 current source enable (PC3)
-    uint64_t sense_on_cycle;
+    uint64_t sense_on_cycle, last_sense_off_cycle;
+    uint64_t last_disable_cycle, disables;
 };
 
 struct harness {
     avr_t *avr;
     struct plant_link *plant;
     struct drive_state drive;
-    double heater_supply_V;
+    double backdrive_steps_per_s;
     uint64_t moving_window_cycles;  // a step within this window = motor moving
+    uint64_t t3_zero_cycle;         // when the firmware started Timer3 (its microsecond clock)
     // figures gathered by the modules
     uint64_t uart_rx_bytes, uart_tx_bytes, uart_rx_overruns, uart_rx_held_before_rxen;
     uint64_t uart_tx_first_cycle, uart_tx_last_cycle;
     uint64_t uart_tx_longest_burst_bytes, uart_tx_longest_burst_cycles;  // back-to-back bytes
     uint64_t uart_cycles_per_byte_fixes;
     uint64_t twi_status_fixes, twi_transactions, twi_naks;
-    uint64_t ads_conversions, cs_conversions, cs_words_read, cs_partial_reads;
+    uint64_t twi_starts, twi_stops, twi_bytes, twi_naks_injected, twi_stretched_bytes;
+    uint64_t twi_stuck_events, twi_manual_clocks, twi_releases;
+    uint64_t ads_conversions, ads_alerts, cs_conversions, cs_words_read, cs_partial_reads;
+    uint64_t cs_od_words, cs_sclk_violations;
     uint64_t plant_queries;
-    uint64_t resets;               // times the AVR came back to the reset vector after starting
+    uint64_t resets;               // hardware resets after power-on (DTR, watchdog)
+    uint64_t app_starts;           // the application's reset vector reached (incl. restarts)
+    int n_reset_log;
+    double reset_t_s[MAX_RESETS];
+    char reset_cause[MAX_RESETS][16];
+    // heater: stretches of heating with their mean duty
+    uint64_t heater_periods;
+    double heater_period_start_s[HEATER_MAX_PERIODS], heater_period_end_s[HEATER_MAX_PERIODS];
+    double heater_period_duty[HEATER_MAX_PERIODS];
+    double heater_last_off_s;
     // sample-period jitter: intervals between ADS1115 conversion starts
     uint64_t ads_last_start;
     uint64_t ads_intervals;
@@ -60,20 +78,40 @@ struct harness {
 };
 
 double harness_time_s(const struct harness *h);
+// The firmware's own clock (Timer3 microseconds since it started) at a cycle.
+double harness_app_us(const struct harness *h, uint64_t cycle);
 int harness_motor_moving(const struct harness *h);
 double harness_heater_duty(const struct harness *h);
 
 // Modules (see each .c for its contract).
-void drive_attach(struct harness *h);
+void wiring_attach(struct harness *h);
+void wiring_pull(struct harness *h, char port, int bit, int level);
+void wiring_release(struct harness *h, char port, int bit);
+int wiring_level(const struct harness *h, char port, int bit);
+void wiring_reapply(struct harness *h);
+void drive_attach(struct harness *h, int enable_pull_up);
 void drive_check_interlock(struct harness *h);  // also called every slice (Timer2 has no IRQ)
-void ads1115_attach(struct harness *h, uint8_t address7);
+void drive_tick(struct harness *h);
+void drive_reset(struct harness *h);
+void ads1115_attach(struct harness *h, uint8_t address7, double rate_error, FILE *trace);
+void ads1115_reset(struct harness *h);
+int twi_bus_add_fault(const char *spec, char *err, size_t errlen);
+void twi_bus_attach(struct harness *h);
+void twi_bus_reset(struct harness *h);
+int twi_bus_nack_now(void);
+uint64_t twi_bus_byte_cycles(void);
 void cs5513_attach(struct harness *h, double conversion_us);
+void cs5513_reset(struct harness *h);
 void isr_timing_attach(struct harness *h);
 int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_t errlen);
 // Moves host bytes in and device bytes out; returns bytes still waiting to be sent to the host.
 size_t uart_bridge_service(struct harness *h, int wait_ms);
-uint64_t uart_bridge_last_rx_cycle(void);
+uint64_t uart_bridge_last_rx_cycle(void);   // for pacing: the host's last byte or the last reset
+uint64_t uart_bridge_host_rx_cycle(void);   // the host's last byte
 double uart_bridge_last_rx_wall(void);
+// Counts as host activity for pacing (a reset: let the bootloader and the boot run).
+void uart_bridge_note_activity(uint64_t cycle);
 void uart_bridge_discard_output(void);
+void uart_bridge_reset(struct harness *h);
 void uart_bridge_close(void);
 void twi_quirks_apply(struct harness *h);

@@ -10,8 +10,8 @@
 //    the bridge recomputes the byte time from the registers on every service call;
 //  - its 64-byte RX FIFO with XON/XOFF hides overruns: the bridge ignores XON/XOFF
 //    and, when a byte completes while two unread bytes already wait (the real
-//    2-level receive buffer is full), drops it and counts an overrun, as the chip's
-//    DOR would;
+//    2-level receive buffer is full), drops it, counts an overrun and sets DOR0 in
+//    UCSR0A until the firmware next reads UDR0, as the chip does;
 //  - bytes arriving before RXEN0 is set would be dropped: the bridge holds them
 //    until the receiver is enabled and counts them (the host should wait for BOOT).
 #define _GNU_SOURCE
@@ -29,6 +29,7 @@
 #include <avr_uart.h>
 
 #include "harness.h"
+#include "rig_map.h"
 
 #define RING 65536
 
@@ -42,10 +43,13 @@ static struct {
     uint8_t *tx;
     size_t tx_len, tx_cap;      // AVR -> host, not yet written
     int pump_running;
-    uint64_t last_rx_cycle;
+    uint64_t last_rx_cycle;     // the host's last byte
+    uint64_t activity_cycle;    // a reset: pace as if the host had just spoken
     double last_rx_wall;
     int held_counted;
     uint64_t burst_bytes, burst_start;
+    avr_io_read_t udr_read;  // simavr's UDR0 read handler, wrapped
+    void *udr_param;
 } g;
 
 static double wall_s(void) {
@@ -88,6 +92,7 @@ static avr_cycle_count_t rx_pump(struct avr_t *avr, avr_cycle_count_t when, void
     g.rx_tail = (g.rx_tail + 1) & (RING - 1);
     if (rx_fifo_unread() >= 2) {
         g.h->uart_rx_overruns++;  // the real chip's DOR: this byte is lost
+        avr->data[REG_UCSR0A] |= 1u << UCSR0A_DOR0;
     } else {
         avr_raise_irq(g.rx_irq, byte);
         g.h->uart_rx_bytes++;
@@ -122,6 +127,14 @@ static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
     h->uart_tx_bytes++;
 }
 
+// Reading UDR0 clears DOR0 (it belongs to the byte read).
+static uint8_t on_udr_read(struct avr_t *avr, avr_io_addr_t addr, void *param) {
+    (void)param;
+    const uint8_t v = g.udr_read(avr, addr, g.udr_param);
+    avr->data[REG_UCSR0A] &= (uint8_t)~(1u << UCSR0A_DOR0);
+    return v;
+}
+
 int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_t errlen) {
     memset(&g, 0, sizeof g);
     g.h = h;
@@ -136,6 +149,13 @@ int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_
     flags &= ~(AVR_UART_FLAG_STDIO | AVR_UART_FLAG_POLL_SLEEP);
     avr_ioctl(h->avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     g.rx_irq = avr_io_getirq(h->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+    const avr_io_addr_t udr = AVR_DATA_TO_IO(REG_UDR0);
+    g.udr_read = h->avr->io[udr].r.c;
+    g.udr_param = h->avr->io[udr].r.param;
+    if (g.udr_read) {
+        h->avr->io[udr].r.c = on_udr_read;
+        h->avr->io[udr].r.param = NULL;
+    }
     avr_irq_register_notify(avr_io_getirq(h->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_tx, NULL);
 
     char name[256];
@@ -197,7 +217,25 @@ size_t uart_bridge_service(struct harness *h, int wait_ms) {
     return g.tx_len;
 }
 
-uint64_t uart_bridge_last_rx_cycle(void) { return g.last_rx_cycle; }
+uint64_t uart_bridge_last_rx_cycle(void) {
+    return g.activity_cycle > g.last_rx_cycle ? g.activity_cycle : g.last_rx_cycle;
+}
+
+uint64_t uart_bridge_host_rx_cycle(void) { return g.last_rx_cycle; }
+
+void uart_bridge_note_activity(uint64_t cycle) {
+    if (cycle > g.activity_cycle) g.activity_cycle = cycle;
+}
+
+// The AVR reset: simavr dropped the byte pump's timer; bytes still waiting go on.
+void uart_bridge_reset(struct harness *h) {
+    g.pump_running = 0;
+    g.held_counted = 0;
+    if (g.rx_head != g.rx_tail) {
+        g.pump_running = 1;
+        avr_cycle_timer_register(h->avr, frame_cycles(), rx_pump, NULL);
+    }
+}
 double uart_bridge_last_rx_wall(void) { return g.last_rx_wall; }
 void uart_bridge_discard_output(void) { g.tx_len = 0; }
 

@@ -92,7 +92,7 @@ def test_a_crashing_firmware_is_reported(firmware_dir, tmp_path):
     build.mkdir()
     subprocess.run(["avr-gcc", "-mmcu=atmega2560", "-Os", str(src), "-o", str(build / "tsa_bench.elf")], check=True)
     (build / "tsa_simavr").symlink_to(firmware_dir / "build" / "tsa_simavr")
-    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=tmp_path, build=False)) as bench:
+    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=tmp_path, build=False, bootloader="none")) as bench:
         bench.start()
         deadline = time.monotonic() + 20
         while bench._proc.poll() is None and time.monotonic() < deadline:
@@ -165,7 +165,7 @@ def test_the_uart_overrun_a_real_chip_would_show_is_counted(firmware_dir, tmp_pa
 int main(void) { UBRR0 = 7; UCSR0A = 1 << U2X0; UCSR0C = 3 << UCSZ00; UCSR0B = (1 << RXEN0) | (1 << TXEN0);
   for (;;) {} }
 """, firmware_dir)
-    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False)) as bench:
+    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False, bootloader="none")) as bench:
         port = serial.Serial(bench.port_path, 250000, timeout=0.02)
         bench.start()
         time.sleep(0.2)
@@ -186,7 +186,7 @@ int main(void) {
   PORTA |= 2; PORTA |= 1; PORTA &= ~1;                     /* DIR high right before STEP */
   for (;;) {} }
 """, firmware_dir)
-    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False)) as bench:
+    with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False, bootloader="none")) as bench:
         bench.start()
         time.sleep(0.5)
     s = bench.summary

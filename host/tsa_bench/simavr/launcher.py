@@ -7,10 +7,19 @@ ELF and the harness (``make -C <firmware_dir> harness``, a no-op when up to date
 starts a :class:`~tsa_bench.simavr.plant_server.PlantServer` on a Unix socket in a
 private temporary directory, starts ``tsa_simavr`` on a pty in that directory and
 waits for it to connect. The caller then opens :attr:`port_path` like any serial
-port and calls :meth:`start`, which releases the AVR from reset (as opening a real
-Mega's port does through DTR): the device's BOOT frame follows. Leaving the context
-sends SIGTERM, waits for the harness to write its JSON summary (:attr:`summary`) and
-removes the directory. Failures raise :class:`SimavrError` with what to check.
+port and calls :meth:`start`, which powers the AVR up (as plugging in a real Mega and
+opening its port does): the emulated stk500v2 bootloader runs ~1 s, then the device's
+BOOT frame follows. :meth:`reset` is the DTR pulse of a host opening the port again (an
+external reset, SIGUSR1 to the harness). Leaving the context sends SIGTERM, waits for
+the harness to write its JSON summary (:attr:`summary`) and removes the directory.
+Failures raise :class:`SimavrError` with what to check.
+
+The rig's settings (the ``simavr:`` section of a bench file, or SimavrSettings):
+``bootloader`` stock | 2011 | none (the 2011 release loops after a watchdog reset),
+``enable_pull`` down | up (the A4988 /ENABLE resistor: down keeps the motor energized
+through a reset), ``backdrive_steps_per_s`` (how fast the loaded strings turn a released
+motor back), ``ads_rate_error`` (the ADS1115's oscillator error, +-0.1 in its data
+sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``hang_at_s`` and ``trace``.
 """
 
 from __future__ import annotations
@@ -45,6 +54,13 @@ class SimavrSettings:
     realtime_factor: float = 0.0          # 0 = as fast as the host keeps up
     cs5513_conversion_us: float = 19125.0
     build: bool = True
+    bootloader: str = "stock"
+    enable_pull: str = "down"
+    backdrive_steps_per_s: float = 16000.0
+    ads_rate_error: float = 0.0
+    twi_faults: tuple[str, ...] = ()
+    hang_at_s: float | None = None
+    trace: bool = False
 
     @property
     def elf(self) -> Path:
@@ -54,9 +70,15 @@ class SimavrSettings:
     def harness(self) -> Path:
         return self.firmware_dir / "build" / "tsa_simavr"
 
+    @property
+    def bootloader_elf(self) -> Path | None:
+        return None if self.bootloader == "none" else self.firmware_dir / "build" / f"sim_boot_{self.bootloader}.elf"
+
 
 _NUMBERS = {"heater_supply_V": (0.0, 100.0), "lead_ms": (1.0, 60000.0), "host_gone_ms": (10.0, 600000.0),
-            "realtime_factor": (0.0, 1000.0), "cs5513_conversion_us": (1000.0, 1000000.0)}
+            "realtime_factor": (0.0, 1000.0), "cs5513_conversion_us": (1000.0, 1000000.0),
+            "backdrive_steps_per_s": (0.0, 1e6), "ads_rate_error": (-0.5, 0.5)}
+_CHOICES = {"bootloader": ("stock", "2011", "none"), "enable_pull": ("down", "up")}
 
 
 def simavr_settings(bench: BenchConfig) -> SimavrSettings:
@@ -67,7 +89,7 @@ def simavr_settings(bench: BenchConfig) -> SimavrSettings:
     """
     where = f"{bench.path or '<bench>'}: simavr"
     data = dict(bench.simavr)
-    allowed = {"firmware_dir", "build", *_NUMBERS}
+    allowed = {"firmware_dir", "build", *_NUMBERS, *_CHOICES}
     for key in data:
         if key not in allowed:
             raise BenchConfigError(f"{where}: unknown key '{key}' (allowed: {', '.join(sorted(allowed))})")
@@ -82,13 +104,20 @@ def simavr_settings(bench: BenchConfig) -> SimavrSettings:
     build = data.pop("build", True)
     if not isinstance(build, bool):
         raise BenchConfigError(f"{where}: 'build' must be true or false, got {build!r}")
+    choices: dict[str, str] = {}
+    for key, options in _CHOICES.items():
+        if key in data:
+            value = data.pop(key)
+            if str(value) not in options:
+                raise BenchConfigError(f"{where}: '{key}' must be one of {', '.join(options)}, got {value!r}")
+            choices[key] = str(value)
     values: dict[str, float] = {}
     for key, value in data.items():
         lo, hi = _NUMBERS[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
             raise BenchConfigError(f"{where}: '{key}' must be a number in [{lo:g}, {hi:g}], got {value!r}")
         values[key] = float(value)
-    return SimavrSettings(firmware_dir=firmware_dir, build=build, **values)
+    return SimavrSettings(firmware_dir=firmware_dir, build=build, **values, **choices)  # type: ignore[arg-type]
 
 
 class SimavrBench:
@@ -101,6 +130,7 @@ class SimavrBench:
         self.seed = seed
         self.connect_timeout_s = connect_timeout_s
         self.summary: dict[str, Any] | None = None
+        self.trace_text: str | None = None
         self.returncode: int | None = None
         self.stderr_text = ""
         self._dir: Path | None = None
@@ -125,7 +155,7 @@ class SimavrBench:
         s = self.settings
         if s.build:
             self.build()
-        for path in (s.elf, s.harness):
+        for path in (s.elf, s.harness, *([s.bootloader_elf] if s.bootloader_elf else [])):
             if not path.exists():
                 raise SimavrError(f"{path} does not exist: run `make -C {s.firmware_dir} harness`")
         self._dir = Path(tempfile.mkdtemp(prefix="tsa-simavr-"))
@@ -134,7 +164,16 @@ class SimavrBench:
             cmd = [str(s.harness), "--elf", str(s.elf), "--pty", self.port_path,
                    "--plant", self.plant.path, "--summary", str(self._dir / "summary.json"),
                    "--lead-ms", repr(s.lead_ms), "--host-gone-ms", repr(s.host_gone_ms),
-                   "--realtime", repr(s.realtime_factor), "--cs5513-conversion-us", repr(s.cs5513_conversion_us)]
+                   "--realtime", repr(s.realtime_factor), "--cs5513-conversion-us", repr(s.cs5513_conversion_us),
+                   "--bootloader", str(s.bootloader_elf or "none"), "--enable-pull", s.enable_pull,
+                   "--backdrive-steps-per-s", repr(s.backdrive_steps_per_s),
+                   "--ads-rate-error", repr(s.ads_rate_error)]
+            for fault in s.twi_faults:
+                cmd += ["--twi-fault", fault]
+            if s.hang_at_s is not None:
+                cmd += ["--hang-at", repr(s.hang_at_s)]
+            if s.trace:
+                cmd += ["--trace", str(self._dir / "trace.txt")]
             self._stderr = open(self._dir / "stderr.txt", "w+")
             self._proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=self._stderr)
             try:
@@ -151,6 +190,11 @@ class SimavrBench:
         """Release the AVR from reset; its BOOT frame follows on the pty."""
         assert self.plant is not None
         self.plant.start()
+
+    def reset(self) -> None:
+        """The DTR pulse of a host opening the port again: an external reset of the AVR."""
+        assert self._proc is not None
+        self._proc.send_signal(signal.SIGUSR1)
 
     def set_load_g(self, load_g: float) -> None:
         assert self.plant is not None
@@ -180,6 +224,9 @@ class SimavrBench:
             summary = self._dir / "summary.json"
             if summary.exists():
                 self.summary = json.loads(summary.read_text())
+            trace = self._dir / "trace.txt"
+            if trace.exists():
+                self.trace_text = trace.read_text()
             self.stderr_text = self._read_stderr()
             self._stderr.close()
             shutil.rmtree(self._dir, ignore_errors=True)
