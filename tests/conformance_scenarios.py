@@ -44,12 +44,14 @@ class Exchange:
         self.seq = 100
         self.samples: list[msg.Sample] = []
         self.events: list[msg.Event] = []
+        self.received: list = []          # every message, in order
 
     def _read_some(self) -> list:
         data = self.port.read(self.port.in_waiting or 1) if self.settle_s else self.port.read(4096)
         out = [f.message for f in self.decoder.feed(data)]
         self.samples += [m for m in out if isinstance(m, msg.Sample)]
         self.events += [m for m in out if isinstance(m, msg.Event)]
+        self.received += out
         return out
 
     def replies(self) -> list:
@@ -70,6 +72,20 @@ class Exchange:
             seq = self.seq
         self.port.write(raw if raw is not None else encode(message, seq))
         return self.replies()
+
+    def send_for(self, message, kind: type, timeout_s: float = 10.0):
+        """Send ``message`` and return the first reply of type ``kind`` (e.g. HEARTBEAT
+        -> QUEUE_STATUS), unnormalised."""
+        start = len(self.received)
+        self.send(message)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            found = [m for m in self.received[start:] if isinstance(m, kind)]
+            if found:
+                return found[0]
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no {kind.__name__} after {message}")
+            self._read_some()
 
     def wait_for(self, predicate: Callable[[object], bool], timeout_s: float, heartbeat: bool = True) -> None:
         """Read until a message matches ``predicate``, sending a HEARTBEAT every 0.2 s of

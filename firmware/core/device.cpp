@@ -49,6 +49,10 @@ void Device::boot() {
     underruns_seen_ = board_.step_underruns();
     recoveries_seen_ = board_.i2c_recoveries();
     last_host_us_ = board_.now_us();
+    // A reset can cut a frame short on the wire: a lone delimiter first ends it on the
+    // host's side, so the BOOT that follows is not swallowed by it (found in simavr).
+    const uint8_t delimiter = 0;
+    board_.serial_write(&delimiter, 1);
     proto::Boot m;
     m.fw_major = cfg::FW_MAJOR;
     m.fw_minor = cfg::FW_MINOR;

@@ -9,16 +9,27 @@
 // a pull-up (the motor is released whenever the AVR resets). While the driver is
 // disabled a loaded, twisted TSA turns the motor back towards zero twist at
 // --backdrive-steps-per-s (counted: steps.backdriven), so a position kept across such
-// a reset would be wrong. The heater duty is read from Timer2 (OC2A fast PWM, on for
-// (OCR2A + 1)/256 of a period) or the port bit when the compare output is disconnected;
-// the plant is given its 8 ms moving average (the firmware dithers the duty period by
-// period), and each stretch of heating (no off time longer than 3 PWM periods) is kept
-// with its mean duty for the summary. Driving the heater while the sense current is on
-// is an interlock violation (the firmware must never do it).
+// a reset would be wrong. The heater gate is followed period by period, as the pin
+// would be: at each BOTTOM of Timer2's fast PWM, with OC2A connected, the gate is on for
+// (OCR2A + 1) timer ticks (the output latch sets at BOTTOM and clears at the compare
+// match), with OC2A disconnected it follows PORTB4; disconnecting before the compare
+// cuts the pulse short. From these on-times come the duty the plant is given (an 8 ms
+// moving average: the firmware dithers the duty from period to period) and, for the
+// summary, each stretch of heating (from the PWM starting until it stops: the compare
+// interrupt enabled, OC2A connected or the pin high) with its mean duty. Driving the
+// heater while the sense current is on is an interlock violation.
+//
+// simavr 1.6 trap: it applies an OCR2A write in fast PWM at once (and, when the new
+// compare point lies later in the running period, fires a second compare match in that
+// period), where the chip double-buffers OCR2A to the next BOTTOM (data sheet 18.7.3).
+// The firmware writes OCR2A from the compare ISR, so without the buffer its dither ran
+// two steps in some periods. The harness holds OCR2A writes made in fast PWM and hands
+// them to simavr's timer one cycle before the next overflow.
 #include <math.h>
 #include <string.h>
 
 #include <avr_ioport.h>
+#include <avr_timer.h>
 
 #include "harness.h"
 #include "rig_map.h"
@@ -27,57 +38,95 @@
 #define HEATER_EMA_S 0.008
 
 static struct harness *g_h;
+
 static struct {
-    double duty;             // instantaneous
-    uint64_t since;          // cycle of the last duty change
-    double ema;              // the plant's view
-    uint64_t last_nonzero;   // last cycle the duty was > 0
-    int on;                  // inside a stretch of heating
-    uint64_t on_start;
-    double on_integral;      // duty x cycles since on_start
+    avr_timer_t *t2;
+    avr_io_write_t write;    // simavr's own OCR2A handler
+    void *param;
+    uint8_t pending;
+} g_ocr;
+static struct {
+    int running;             // the PWM drives the gate (or the pin is forced high)
+    uint64_t period_start;   // the running period's BOTTOM
+    uint64_t pulse_end;      // when its pulse ends (== period_start: no pulse)
+    double ema;              // the plant's view of the duty
+    uint64_t on_start;       // the stretch of heating began
+    double on_cycles;        // gate-on cycles in the stretch
     uint64_t backdrive_last;
     double backdrive_frac;
 } g;
 
 static uint64_t ns_to_cycles(uint64_t ns) { return (ns * 16 + 999) / 1000; }
 
-static double duty_now(const struct harness *h) {
+static int gate_running(const struct harness *h) {
     const uint8_t *d = h->avr->data;
-    if (d[REG_TCCR2A] & (1 << TCCR2A_COM2A1)) return (d[REG_OCR2A] + 1) / 256.0;
-    return wiring_level(h, RIG_HEATER_PORT, RIG_HEATER_BIT) ? 1.0 : 0.0;
+    return (d[REG_TIMSK2] & (1 << TIMSK2_OCIE2A)) || (d[REG_TCCR2A] & (1 << TCCR2A_COM2A1)) ||
+           wiring_level(h, RIG_HEATER_PORT, RIG_HEATER_BIT);
 }
 
-// Account the duty held since the last change, up to now.
+static avr_cycle_count_t pwm_bottom(struct avr_t *avr, avr_cycle_count_t when, void *param);
+
+// A new PWM period starts: its pulse, and the moving average over the last one.
+static void start_period(struct harness *h, uint64_t bottom) {
+    const uint8_t *d = h->avr->data;
+    const uint64_t period = g_ocr.t2 && g_ocr.t2->tov_cycles > 1 ? g_ocr.t2->tov_cycles : PWM_PERIOD_CYCLES;
+    if (g.period_start && bottom > g.period_start) {
+        const double last = (double)(g.pulse_end - g.period_start) / (double)(bottom - g.period_start);
+        g.ema += (last - g.ema) * (1.0 - exp(-(double)(bottom - g.period_start) / (HEATER_EMA_S * HZ_CPU)));
+        if (g.running) g.on_cycles += (double)(g.pulse_end - g.period_start);
+    }
+    g.period_start = bottom;
+    uint64_t pulse = 0;
+    if (d[REG_TCCR2A] & (1 << TCCR2A_COM2A1))
+        pulse = (uint64_t)(d[REG_OCR2A] + 1) * (period / 256);
+    else if (wiring_level(h, RIG_HEATER_PORT, RIG_HEATER_BIT))
+        pulse = period;
+    g.pulse_end = bottom + pulse;
+}
+
+// Called on every register change and every slice.
 static void heater_update(struct harness *h) {
     const uint64_t now = h->avr->cycle;
-    const uint64_t dt = now - g.since;
-    if (dt) {
-        g.ema += (g.duty - g.ema) * (1.0 - exp(-(double)dt / (HEATER_EMA_S * HZ_CPU)));
-        if (g.on) g.on_integral += g.duty * (double)dt;
-    }
-    g.since = now;
-    const double d = duty_now(h);
-    if (d > 0) {
-        g.last_nonzero = now;
-        if (!g.on) {
-            g.on = 1;
-            g.on_start = now;
-            g.on_integral = 0;
+    const uint8_t *d = h->avr->data;
+    // OC2A disconnected (or the pin forced low) before the compare: the pulse ends now.
+    if (g.pulse_end > now && !(d[REG_TCCR2A] & (1 << TCCR2A_COM2A1)) &&
+        !wiring_level(h, RIG_HEATER_PORT, RIG_HEATER_BIT))
+        g.pulse_end = now > g.period_start ? now : g.period_start;
+    const int running = gate_running(h);
+    if (running && !g.running) {
+        g.running = 1;
+        g.on_start = now;
+        g.on_cycles = 0;
+        if (g.pulse_end > now) g.on_cycles -= (double)(now - g.period_start);  // count from now
+        if (!g_ocr.t2 || g_ocr.t2->tov_cycles <= 1) start_period(h, now);
+        else avr_cycle_timer_register(h->avr, g_ocr.t2->tov_base + g_ocr.t2->tov_cycles - now, pwm_bottom, h);
+    } else if (!running && g.running) {
+        g.running = 0;
+        start_period(h, now);  // close the last (partial) period
+        g.running = 0;
+        const double span = (double)(now - g.on_start);
+        if (span < PWM_PERIOD_CYCLES) {  // a register sequence passing through "on": not heating
+            avr_cycle_timer_cancel(h->avr, pwm_bottom, h);
+            return;
         }
-    } else if (g.on && now - g.last_nonzero > 3 * PWM_PERIOD_CYCLES) {
-        // off for good: the stretch ended when the duty last fell to 0
-        const uint64_t end = g.last_nonzero;
-        const double span = (double)(end - g.on_start);
         if (h->heater_periods < HEATER_MAX_PERIODS) {
             h->heater_period_start_s[h->heater_periods] = (double)g.on_start / HZ_CPU;
-            h->heater_period_end_s[h->heater_periods] = (double)end / HZ_CPU;
-            h->heater_period_duty[h->heater_periods] = span > 0 ? g.on_integral / span : 0;
+            h->heater_period_end_s[h->heater_periods] = (double)now / HZ_CPU;
+            h->heater_period_duty[h->heater_periods] = span > 0 ? g.on_cycles / span : 0;
         }
         h->heater_periods++;
-        h->heater_last_off_s = (double)end / HZ_CPU;
-        g.on = 0;
+        h->heater_last_off_s = (double)now / HZ_CPU;
+        avr_cycle_timer_cancel(h->avr, pwm_bottom, h);
     }
-    g.duty = d;
+}
+
+static avr_cycle_count_t pwm_bottom(struct avr_t *avr, avr_cycle_count_t when, void *param) {
+    struct harness *h = param;
+    start_period(h, when);
+    if (!g.running) return 0;
+    const uint64_t period = g_ocr.t2 && g_ocr.t2->tov_cycles > 1 ? g_ocr.t2->tov_cycles : PWM_PERIOD_CYCLES;
+    (void)avr;
+    return when + period;
 }
 
 double harness_heater_duty(const struct harness *h) {
@@ -88,7 +137,7 @@ double harness_heater_duty(const struct harness *h) {
 // Counted once per episode: entering the state "heater driven and sense current on".
 void drive_check_interlock(struct harness *h) {
     heater_update(h);
-    const int bad = h->drive.sense_on && g.duty > 0;
+    const int bad = h->drive.sense_on && g.running;
     if (bad && !h->drive.interlock_active) h->drive.interlock_violations++;
     h->drive.interlock_active = bad;
 }
@@ -174,6 +223,34 @@ static void on_heater_reg(struct avr_t *avr, avr_io_addr_t addr, uint8_t v, void
     drive_check_interlock(param);
 }
 
+// TIMSK2 has no handler in simavr (the core writes it): a handler must store the value.
+static void on_timsk2(struct avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+    avr_core_watch_write(avr, addr, v);
+    drive_check_interlock(param);
+}
+
+static avr_cycle_count_t apply_ocr2a(struct avr_t *avr, avr_cycle_count_t when, void *param) {
+    (void)when;
+    (void)param;
+    g_ocr.write(avr, REG_OCR2A, g_ocr.pending, g_ocr.param);
+    return 0;
+}
+
+// OCR2A written: in fast PWM, effective at the next BOTTOM (see the contract).
+static void on_ocr2a(struct avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+    const uint8_t wgm = avr->data[REG_TCCR2A] & 3;
+    avr_timer_t *t = g_ocr.t2;
+    if (wgm == 3 && t && t->tov_cycles > 1) {
+        g_ocr.pending = v;
+        const uint64_t bottom = t->tov_base + t->tov_cycles;
+        const uint64_t delay = bottom > avr->cycle + 1 ? bottom - avr->cycle - 1 : 1;
+        avr_cycle_timer_register(avr, delay, apply_ocr2a, param);
+        return;
+    }
+    avr_cycle_timer_cancel(avr, apply_ocr2a, param);
+    g_ocr.write(avr, addr, v, g_ocr.param);
+}
+
 // Called every slice: a disabled driver lets the loaded strings turn the motor back.
 void drive_tick(struct harness *h) {
     struct drive_state *s = &h->drive;
@@ -210,8 +287,18 @@ void drive_attach(struct harness *h, int enable_pull_up) {
     watch(h, RIG_EN_PORT, RIG_EN_BIT, on_enable);
     watch(h, RIG_ISRC_EN_PORT, RIG_ISRC_EN_BIT, on_sense);
     watch(h, RIG_HEATER_PORT, RIG_HEATER_BIT, on_heater_pin);
-    avr_register_io_write(h->avr, REG_OCR2A, on_heater_reg, h);
+    // Take OCR2A's writes over from simavr's timer (its handler is called when they apply).
+    const avr_io_addr_t ocr = AVR_DATA_TO_IO(REG_OCR2A);
+    memset(&g_ocr, 0, sizeof g_ocr);
+    g_ocr.write = h->avr->io[ocr].w.c;
+    g_ocr.param = h->avr->io[ocr].w.param;
+    for (avr_io_t *io = h->avr->io_port; io; io = io->next)
+        if (io->kind && !strcmp(io->kind, "timer") && ((avr_timer_t *)io)->name == '2') g_ocr.t2 = (avr_timer_t *)io;
+    h->avr->io[ocr].w.c = on_ocr2a;
+    h->avr->io[ocr].w.param = h;
     avr_register_io_write(h->avr, REG_TCCR2A, on_heater_reg, h);
+    const avr_io_addr_t timsk2 = AVR_DATA_TO_IO(REG_TIMSK2);
+    avr_register_io_write(h->avr, REG_TIMSK2, h->avr->io[timsk2].w.c ? on_heater_reg : on_timsk2, h);
     wiring_pull(h, RIG_STEP_PORT, RIG_STEP_BIT, 0);
     wiring_pull(h, RIG_HEATER_PORT, RIG_HEATER_BIT, 0);
     wiring_pull(h, RIG_ISRC_EN_PORT, RIG_ISRC_EN_BIT, 0);
@@ -220,4 +307,11 @@ void drive_attach(struct harness *h, int enable_pull_up) {
 }
 
 // The AVR reset: Timer2 and the ports are back at their reset values.
-void drive_reset(struct harness *h) { drive_check_interlock(h); }
+void drive_reset(struct harness *h) {
+    avr_cycle_timer_cancel(h->avr, apply_ocr2a, h);
+    if (g.running) {  // simavr dropped the period timer: the PWM stopped with the reset
+        g.running = 1;
+        avr_cycle_timer_register(h->avr, 1, pwm_bottom, h);
+    }
+    drive_check_interlock(h);
+}

@@ -36,6 +36,8 @@
 #define REG_TCCR2A 0xB0
 #define REG_OCR2A 0xB3
 #define TCCR2A_COM2A1 7
+#define REG_TIMSK2 0x70
+#define TIMSK2_OCIE2A 1
 
 // TWI: bit rate, status (prescaler in bits 1:0), control.
 #define REG_TWBR 0xB8

@@ -31,8 +31,8 @@ def firmware_dir() -> Path:
 
 @contextmanager
 def simavr_port(firmware_dir: Path, **settings):
-    """(port, bench) on the firmware in simavr, after its BOOT; the bench's ``summary``
-    is filled once the block exits."""
+    """(port, bench) on the firmware in simavr, after its BOOT (kept as
+    ``bench.boot_message``); the bench's ``summary`` is filled once the block exits."""
     with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=firmware_dir, build=False, **settings),
                      seed=1) as bench:
         port = serial.Serial(bench.port_path, 250000, timeout=0.02)
@@ -41,8 +41,11 @@ def simavr_port(firmware_dir: Path, **settings):
             # As on a real board, host bytes before the device is up are lost (the UART
             # receives before interrupts are on): wait for BOOT, as BenchClient does.
             decoder, deadline = MessageDecoder(), time.monotonic() + 10
-            while not any(isinstance(f.message, msg.Boot) for f in decoder.feed(port.read(64))):
+            bench.boot_message = None
+            while bench.boot_message is None:
                 assert time.monotonic() < deadline, "no BOOT from the firmware in simavr"
+                boots = [f.message for f in decoder.feed(port.read(64)) if isinstance(f.message, msg.Boot)]
+                bench.boot_message = boots[0] if boots else None
             yield port, bench
         finally:
             port.close()

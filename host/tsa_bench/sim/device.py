@@ -161,7 +161,9 @@ class SimDevice:
         self.plant.set_load(load_g)
 
     def boot(self) -> None:
-        """Announce the start: queue BOOT (reason POWER_ON: a fresh device, position unknown)."""
+        """Announce the start: queue BOOT (reason POWER_ON: a fresh device, position unknown),
+        after a lone delimiter, as the firmware does (it ends a frame a reset cut short)."""
+        self._out += b"\x00"
         self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(msg.BootReason.POWER_ON)))
 
     def receive(self, data: bytes) -> None:
