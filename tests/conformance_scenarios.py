@@ -247,10 +247,12 @@ def stop_at_speed(ex: Exchange) -> dict:
     ex.wait_device_s(0.3)
     stopped = [e for e in ex.events if e.kind == msg.EventKind.STOPPED]
     log.append(ex.send(msg.Heartbeat()))
+    if stopped:  # the position when the STOP was acted on: the last sample before it
+        before = [s for s in ex.samples if s.t_us <= stopped[0].t_us][-1]
     after = [s for s in ex.samples if s.t_us > before.t_us]
     rest = stopped[0].value if stopped else None
     moving_after = [s for s in after if s.motor_moving]
-    return {"log": log, "stopped_once": len(stopped) == 1,
+    return {"log": log, "stopped_once": len(stopped) == 1, "rest": rest,
             "coasted_steps": (rest - before.step_position) if rest is not None else None,
             "ends_at_rest_value": bool(after) and after[-1].step_position == rest and not after[-1].motor_moving,
             "decelerated_for_s": (moving_after[-1].t_us - before.t_us) * 1e-6 if moving_after else 0.0}
@@ -273,11 +275,12 @@ def heater_applied(ex: Exchange) -> dict:
     return {"log": log, "reported_mV": reported, "off_mV": ex.samples[-1].heater_mV}
 
 
-def fault_release(ex: Exchange, timeout_s: float = 120.0) -> dict:
-    """A host that vanishes while sampling: fault watchdog after watchdog_ms, and
-    fault_release_ms later the motor is released, sampling and the sense current go off,
-    the position is unknown; CLEAR_QUEUE energizes the motor again."""
-    log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000))]
+def fault_release_with_heater(ex: Exchange, timeout_s: float = 120.0) -> dict:
+    """A host that vanishes while sampling with the heater on: fault watchdog after
+    watchdog_ms (heater off), and fault_release_ms later the motor is released, sampling
+    and the sense current go off, the position is unknown; CLEAR_QUEUE energizes the
+    motor again."""
+    log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000)), ex.send(msg.SetHeater(2, 3000))]
     ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.MOTOR_RELEASED, timeout_s,
                 heartbeat=False)
     released = [e for e in ex.events if e.kind == msg.EventKind.MOTOR_RELEASED][0]
@@ -289,6 +292,6 @@ def fault_release(ex: Exchange, timeout_s: float = 120.0) -> dict:
     log.append(ex.send(msg.Heartbeat()))
     log.append(ex.send(msg.SetPosition(0)))
     log.append(ex.send(msg.Heartbeat()))
-    return {"log": log, "fault_code": fault.code, "released_code": released.code,
+    return {"log": log, "fault_code": fault.code, "released_code": released.code, "fault_t_s": fault.t_us * 1e-6,
             "release_after_fault_s": (released.t_us - fault.t_us) * 1e-6,
             "samples_after_release": last_sample_us > released.t_us}

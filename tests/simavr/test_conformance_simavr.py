@@ -80,3 +80,41 @@ def test_period_shorter_than_a_conversion_keeps_every_slot(firmware_dir, scenari
     assert sim["continuous"] and fil["continuous"]
     assert 0.3 < fil["measured_fraction"] < 0.7
     assert abs(fil["measured_fraction"] - sim["measured_fraction"]) < 0.15
+
+
+def test_stop_at_speed_decelerates_at_the_limit(firmware_dir):
+    """STOP at 16,000 steps/s: both decelerate at the device's limit (~400 steps) to the
+    position EVENT stopped announces; the A4988 agrees. (Before: an instant stop at any
+    speed, where a real motor loses steps.)"""
+    sim, fil, summary = run_both(sc.stop_at_speed, firmware_dir)
+    assert_same_log(fil["log"], sim["log"])
+    for obs in (sim, fil):
+        assert obs["stopped_once"] and obs["ends_at_rest_value"]
+        assert 380 <= obs["coasted_steps"] <= 600          # 400 at the limit, from <= 10 ms before
+    assert summary["steps"]["position"] == fil["rest"]                  # the A4988 ended where announced
+    assert all(v == 0 for v in summary["violations"].values()), summary["violations"]
+
+
+def test_heater_applied_voltage_reported_alike(firmware_dir):
+    sim, fil, _ = run_both(sc.heater_applied, firmware_dir)
+    assert_same_log(fil["log"], sim["log"])
+    assert fil["reported_mV"] == sim["reported_mV"] and fil["off_mV"] == sim["off_mV"] == 0
+
+
+def test_host_lost_heater_off_at_the_watchdog_motor_and_sense_released_later(firmware_dir):
+    """A host that vanishes while sampling with the heater on: the heater is off within
+    20 ms of the watchdog period, and fault_release_ms later the motor is de-energized
+    and the sense current is off, sampling stops; both backends alike. (Before: sampling
+    and the 50 mA sense current went on forever, the motor stayed energized.)"""
+    scenario = sc.fault_release_with_heater
+    sim, fil, summary = run_both(scenario, firmware_dir, host_gone_ms=300)
+    assert_same_log(fil["log"], sim["log"])
+    for obs in (sim, fil):
+        assert obs["fault_code"] == obs["released_code"] == int(sc.msg.Fault.WATCHDOG)
+        assert abs(obs["release_after_fault_s"] - 10.0) < 0.05 and not obs["samples_after_release"]
+    tripped = fil["fault_t_s"] + summary["clock_zero_s"]                 # device time of the watchdog trip
+    assert 0 <= summary["heater"]["last_off_s"] - tripped < 0.02
+    released = summary["drive"]["last_disable_s"]
+    assert 10.0 <= released - tripped < 10.01
+    assert summary["drive"]["disables"] == 1 and not summary["drive"]["sense_on"]   # (CLEAR_QUEUE re-energized it)
+    assert abs(summary["drive"]["last_sense_off_s"] - released) < 0.01
