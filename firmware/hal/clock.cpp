@@ -37,6 +37,8 @@ uint64_t micros() {
     return ticks >> 1;
 }
 
+uint16_t ticks16() { return TCNT3; }  // no ISR touches Timer3's 16-bit registers
+
 void delay_us(uint8_t us) {
     while (us--) __builtin_avr_delay_cycles(F_CPU / 1000000UL);
 }

@@ -11,6 +11,8 @@ namespace hal {
 
 void clock_init();
 uint64_t micros();
+// Timer3's raw count (2 MHz, wraps every 32.8 ms): a cheap clock for short bounded waits.
+uint16_t ticks16();
 void delay_us(uint8_t us);
 
 }  // namespace hal

@@ -30,11 +30,15 @@ bool g_bus_suspect = false;  // the last failure may have left the bus held
 
 uint8_t status() { return TWSR & 0xF8; }
 
+// Timer3 ticks (2 MHz) in the time-out: polled cheaply, so the end of a byte is seen
+// within a few cycles (the ADS1115 starts converting then; the sampler stamps it).
+const uint16_t TIMEOUT_TICKS = TWI_TIMEOUT_US * 2;
+
 // Wait for TWINT, bounded.
 bool wait_int() {
-    const uint64_t t0 = micros();
+    const uint16_t t0 = ticks16();
     while (!(TWCR & (1 << TWINT))) {
-        if (micros() - t0 > TWI_TIMEOUT_US) {
+        if (static_cast<uint16_t>(ticks16() - t0) > TIMEOUT_TICKS) {
             g_bus_suspect = true;
             return false;
         }
@@ -51,9 +55,9 @@ bool command(uint8_t twcr_bits) {
 
 void stop() {
     TWCR = (1 << TWINT) | (1 << TWEN) | (1 << TWSTO);
-    const uint64_t t0 = micros();
+    const uint16_t t0 = ticks16();
     while (TWCR & (1 << TWSTO)) {
-        if (micros() - t0 > TWI_TIMEOUT_US) break;
+        if (static_cast<uint16_t>(ticks16() - t0) > TIMEOUT_TICKS) break;
     }
 }
 
