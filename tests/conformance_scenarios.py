@@ -87,13 +87,17 @@ class Exchange:
                 raise AssertionError(f"no {kind.__name__} after {message}")
             self._read_some()
 
-    def wait_for(self, predicate: Callable[[object], bool], timeout_s: float, heartbeat: bool = True) -> None:
+    def wait_for(self, predicate: Callable[[object], bool], timeout_s: float, heartbeat: bool = True,
+                 since: int | None = None) -> None:
         """Read until a message matches ``predicate``, sending a HEARTBEAT every 0.2 s of
         wall time unless ``heartbeat`` is False (their replies are dropped); EVENTs go
-        to :attr:`events`, SAMPLEs to :attr:`samples`. Fails after ``timeout_s``."""
+        to :attr:`events`, SAMPLEs to :attr:`samples`. With ``since`` (an index into
+        :attr:`received`) a match already received from there on counts: a fast device
+        (simavr runs ahead of the host) may have sent it among an earlier command's
+        replies. Fails after ``timeout_s``."""
         deadline, beat = time.monotonic() + timeout_s, time.monotonic()
         unanswered: set[int] = set()
-        found = False
+        found = since is not None and any(predicate(m) for m in self.received[since:])
         while time.monotonic() < deadline:
             if heartbeat and not found and time.monotonic() - beat > 0.2:
                 self.seq += 1
@@ -173,8 +177,9 @@ def _counters_continuous(samples: list) -> bool:
 
 def stop_during_move(ex: Exchange) -> dict:
     """STOP while the motor turns: halted where it was, queue empty, no SEGMENT_DONE."""
+    start = len(ex.received)
     log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000)), ex.send(msg.MoveTo(2, 32_000, 3_200, 32_000))]
-    ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.motor_moving and m.step_position > 1600, 30)
+    ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.motor_moving and m.step_position > 1600, 30, since=start)
     log.append(ex.send(msg.SetPosition(0)))                                   # refused: a move runs
     log.append(ex.send(msg.Stop()))
     stop_at = len(ex.samples)
@@ -190,9 +195,11 @@ def stop_during_move(ex: Exchange) -> dict:
 
 def watchdog_trip(ex: Exchange) -> dict:
     """A silent host: motor and heater stop, fault latched until CLEAR_QUEUE."""
+    start = len(ex.received)
     log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000)), ex.send(msg.SetHeater(2, 3000)),
            ex.send(msg.Dwell(3, 60_000_000))]
-    ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.FAULT, 60, heartbeat=False)
+    ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.FAULT, 60, heartbeat=False,
+                since=start)
     fault_at = len(ex.samples)
     ex.wait_device_s(0.2)
     log.append(ex.send(msg.Dwell(4, 1_000_000)))       # refused: fault latched
@@ -240,8 +247,9 @@ def stop_at_speed(ex: Exchange) -> dict:
     """STOP while cruising at the top rate (16,000 steps/s): the motor decelerates at the
     device's acceleration limit (320,000 steps/s^2: 400 steps, 50 ms) to the position
     EVENT stopped announces at once, instead of stopping dead (and losing steps)."""
+    start = len(ex.received)
     log = [handshake(ex), ex.send(msg.SetSampling(1, 10_000)), ex.send(msg.MoveTo(2, 160_000, 16_000, 320_000))]
-    ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.step_position > 16_000, 30)
+    ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.step_position > 16_000, 30, since=start)
     before = ex.samples[-1]
     log.append([r for r in ex.send(msg.Stop()) if r[0] != "EVENT"])           # ACK (the EVENT may trail it)
     ex.wait_device_s(0.3)
@@ -280,9 +288,10 @@ def fault_release_with_heater(ex: Exchange, timeout_s: float = 120.0) -> dict:
     watchdog_ms (heater off), and fault_release_ms later the motor is released, sampling
     and the sense current go off, the position is unknown; CLEAR_QUEUE energizes the
     motor again."""
+    start = len(ex.received)
     log = [handshake(ex), ex.send(msg.SetSampling(1, 20_000)), ex.send(msg.SetHeater(2, 3000))]
     ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.MOTOR_RELEASED, timeout_s,
-                heartbeat=False)
+                heartbeat=False, since=start)
     released = [e for e in ex.events if e.kind == msg.EventKind.MOTOR_RELEASED][0]
     fault = [e for e in ex.events if e.kind == msg.EventKind.FAULT][0]
     last_sample_us = max(s.t_us for s in ex.samples)

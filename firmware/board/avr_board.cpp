@@ -59,14 +59,14 @@ uint16_t AvrBoard::serial_write(const uint8_t* data, uint16_t n) { return hal::u
 
 void AvrBoard::motor_enable(bool on) { drv::a4988::enable(on); }
 uint8_t AvrBoard::step_space() { return hal::step_space(); }
-void AvrBoard::step_push(int8_t direction, uint32_t interval_ticks, bool last) {
-    hal::step_push(direction, interval_ticks, last);
+void AvrBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) {
+    hal::step_push(direction, interval_q8, add_q8, count, last);
 }
 bool AvrBoard::step_busy() { return hal::step_busy(); }
 int32_t AvrBoard::step_position() { return hal::step_position(); }
 void AvrBoard::step_set_position(int32_t steps) { hal::step_set_position(steps); }
 void AvrBoard::step_halt() { hal::step_halt(); }
-uint16_t AvrBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
+uint32_t AvrBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
     return hal::step_truncate(keep, rest_position);
 }
 uint16_t AvrBoard::step_underruns() { return hal::step_underruns(); }

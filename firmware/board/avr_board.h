@@ -9,7 +9,7 @@
 // first boot cannot trip it). All Board methods are called from the main loop only.
 // Blocking exceptions to "a few microseconds": an ADS1115 poll does up to two I2C
 // exchanges (~60-100 us each at 400 kHz, bounded by hal::TWI_TIMEOUT_US), a ready
-// CS5513 word costs ~60 us of bit-banging, an I2C bus recovery ~100 us.
+// CS5513 word costs ~30 us of bit-banging, an I2C bus recovery ~100 us.
 #pragma once
 #include <stdint.h>
 
@@ -34,12 +34,12 @@ public:
 
     void motor_enable(bool on) override;
     uint8_t step_space() override;
-    void step_push(int8_t direction, uint32_t interval_ticks, bool last) override;
+    void step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
     bool step_busy() override;
     int32_t step_position() override;
     void step_set_position(int32_t steps) override;
     void step_halt() override;
-    uint16_t step_truncate(uint8_t keep, int32_t& rest_position) override;
+    uint32_t step_truncate(uint8_t keep, int32_t& rest_position) override;
     uint16_t step_underruns() override;
 
     uint16_t heater_set_mV(uint16_t mV) override;

@@ -37,16 +37,19 @@ public:
 
     // --- stepper (A4988 driven by the step-timer ISR) ---------------------------
     virtual void motor_enable(bool on) = 0;
-    // Free slots in the step-interval ring that the step ISR consumes.
+    // Free entries in the ring of step runs that the step ISR consumes.
     virtual uint8_t step_space() = 0;
-    // Queue one step: direction (+1 or -1) and the interval from the previous step
-    // edge (or from now, for the first step of a move) in STEP_TICK_HZ ticks. Steps
+    // Queue a run of `count` (>= 1) steps: direction (+1 or -1) and the interval of
+    // each from the previous step edge (or from now, for the first step of a burst) in
+    // 1/256 STEP_TICK_HZ tick, interval_q8 for the first and add_q8 more for each next
+    // one; the board carries the fraction from step to step (reset when it starts from
+    // idle), so edge n comes at floor(sum of intervals) ticks. Steps
     // queued while the generator runs keep its direction (moves never reverse without
     // the generator going idle first). `last` = false promises more steps: if the
     // ring runs dry before they come, the board counts a step underrun (the step train
     // paused mid-move). The ISR sets DIR at least 200 ns before the STEP edge and keeps
     // STEP high >= 1 us.
-    virtual void step_push(int8_t direction, uint32_t interval_ticks, bool last) = 0;
+    virtual void step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) = 0;
     // True while queued steps remain or a step pulse is in progress.
     virtual bool step_busy() = 0;
     // Signed count of steps executed by the ISR, read atomically.
@@ -58,7 +61,7 @@ public:
     // Drop the queued steps but the pending edge and `keep` more (a controlled stop then
     // queues its deceleration); returns how many were dropped and, in rest_position,
     // where the motor is once the remaining ones have run.
-    virtual uint16_t step_truncate(uint8_t keep, int32_t& rest_position) = 0;
+    virtual uint32_t step_truncate(uint8_t keep, int32_t& rest_position) = 0;
     // Times the ring ran dry mid-move since boot (saturating).
     virtual uint16_t step_underruns() = 0;
 

@@ -23,8 +23,8 @@
 // CLEAR_QUEUE re-energizes it.
 //
 // Contract. boot() once, then poll() forever from the main loop; poll() never blocks
-// (it reads at most RX_BUDGET bytes, pushes step intervals while the board's step ring
-// has room, advances the executor, the watchdog and the sampler state machine, flushes
+// (it reads at most RX_BUDGET bytes, pushes step runs until STEP_LOOKAHEAD_US of steps
+// are queued or the board's ring is full, advances the executor, the watchdog and the sampler state machine, flushes
 // output) and kicks the hardware watchdog. Everything here runs in the main loop:
 // nothing in the core is shared with an interrupt; multi-byte state the step and
 // serial ISRs touch lives behind the Board, which reads it atomically.
@@ -51,8 +51,12 @@ static const uint16_t NO_SEGMENT = 0xFFFF;
 
 typedef void (*SimLoadHandler)(void* ctx, uint32_t load_mg);
 
-// Most steps feed_steps() hands to the step ring per call (see device_exec.cpp).
-static const uint8_t FEED_STEPS_PER_CALL = 8;
+// Most step runs (entries) feed_steps() hands to the step ring per call (see device_exec.cpp).
+static const uint8_t FEED_RUNS_PER_CALL = 4;
+// feed_steps() keeps this much step time queued ahead of the step generator, no more:
+// the ring (255 entries, ~16 ms of ramp steps at the top rate) is never filled in one
+// go at a move's start, so the work per pass stays proportional to the steps taken.
+static const uint32_t STEP_LOOKAHEAD_US = 10000UL;
 
 class Device {
 public:
@@ -152,6 +156,8 @@ private:
     uint32_t stops_found_;
 
     // executor
+    uint64_t burst_us_;     // when the step generator last started from idle
+    uint32_t fed_ticks_;    // step time handed to it since then, STEP_TICK_HZ ticks
     Exec exec_;
     bool starting_;         // idle with segments (or QUEUE_EMPTY) still to start/report
     uint16_t segment_;

@@ -111,11 +111,30 @@ void Device::finish_segment(uint64_t t_us) {
 void Device::feed_steps() {
     if (exec_ != EXEC_MOVE && !stopping_) return;
     // Bounded, so a long ramp never starves the sampler and the serial port; poll()
-    // calls this twice per pass, and the board's ring holds ~16 ms of steps at the top
-    // rate. The interval of a step costs no division (StepPlanner).
-    for (uint8_t n = 0; n < FEED_STEPS_PER_CALL && !planner_.finished() && board_.step_space() > 0; ++n) {
-        const uint32_t interval = planner_.next_interval();
-        board_.step_push(move_dir_, interval, planner_.finished());
+    // calls this twice per pass. A ramp step is one ring entry (the ring holds ~16 ms
+    // of them at the top rate), a cruise of up to 255 steps is one entry, so cruising
+    // costs the loop almost nothing. No division per step (StepPlanner).
+    const uint64_t now = board_.now_us();
+    if (!board_.step_busy()) {  // (re)starting from idle: the lead starts from nothing
+        burst_us_ = now;
+        fed_ticks_ = 0;
+    }
+    const uint32_t elapsed = static_cast<uint32_t>(now - burst_us_) * (STEP_TICK_HZ / 1000000UL);
+    for (uint8_t n = 0; n < FEED_RUNS_PER_CALL && !planner_.finished() && board_.step_space() > 0; ++n) {
+        if (static_cast<int32_t>(fed_ticks_ - elapsed) >= static_cast<int32_t>(STEP_LOOKAHEAD_US * (STEP_TICK_HZ / 1000000UL)))
+            break;
+        uint32_t q8 = 0;
+        int16_t add = 0;
+        const uint8_t count = planner_.next_run(q8, add, 255);
+        board_.step_push(move_dir_, q8, add, count, planner_.finished());
+        // the run's time: count q8 + add count (count - 1) / 2, in whole ticks
+        if (count == 1) {
+            fed_ticks_ += q8 >> 8;
+        } else {
+            const uint16_t pairs = static_cast<uint16_t>((static_cast<uint16_t>(count) * (count - 1)) >> 1);
+            fed_ticks_ += static_cast<uint32_t>(static_cast<int32_t>(q8 >> 8) * count +
+                                                ((static_cast<int32_t>(add) * pairs) >> 8));
+        }
     }
 }
 
@@ -127,10 +146,12 @@ void Device::controlled_stop() {
     set_heater(0);
     if (exec_ == EXEC_MOVE) {
         int32_t rest = 0;
-        const uint16_t dropped = board_.step_truncate(cfg::STOP_KEEP_STEPS, rest);
+        const uint32_t dropped = board_.step_truncate(cfg::STOP_KEEP_STEPS, rest);
         planner_.rewind(dropped);
         const uint32_t left = planner_.stop(cfg::MAX_ACCEL_STEPS_PER_S2);
         rest_steps_ = rest + (move_dir_ > 0 ? static_cast<int32_t>(left) : -static_cast<int32_t>(left));
+        // The dropped steps' time is gone from the ring: feed the deceleration at once.
+        fed_ticks_ = static_cast<uint32_t>(board_.now_us() - burst_us_) * (STEP_TICK_HZ / 1000000UL);
         stopping_ = true;
         exec_ = EXEC_NONE;
         feed_steps();

@@ -34,18 +34,19 @@ void Device::set_sampling(uint32_t period_us, uint64_t t_us) {
 }
 
 void Device::run_sampler(uint64_t now) {
-    if (sampler_ == SAMPLER_IDLE) {
-        if (period_us_ == 0 || now < next_sample_us_) return;
-        uint64_t late = now - next_sample_us_;
-        if (late >= period_us_) {
-            uint64_t skipped = late / period_us_;
-            next_sample_us_ += skipped * period_us_;
-            counter_ += static_cast<uint32_t>(skipped);
-            samples_missed_ += static_cast<uint32_t>(skipped);
-        }
-        start_sample(now);
-    }
+    // The sample in progress first: when it finishes, the next one may start at once.
     progress_sample(now);
+    if (sampler_ != SAMPLER_IDLE || period_us_ == 0) return;
+    now = board_.now_us();  // the pass's earlier work took time: decide on the present
+    if (now < next_sample_us_) return;
+    const uint64_t late = now - next_sample_us_;
+    if (late >= period_us_) {
+        const uint64_t skipped = late / period_us_;
+        next_sample_us_ += skipped * period_us_;
+        counter_ += static_cast<uint32_t>(skipped);
+        samples_missed_ += static_cast<uint32_t>(skipped);
+    }
+    start_sample(now);
 }
 
 void Device::start_sample(uint64_t now) {

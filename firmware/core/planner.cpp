@@ -57,9 +57,9 @@ uint32_t c0_over_root_sum(uint32_t c0_q8, uint32_t p, uint32_t q) {
 }  // namespace
 
 StepPlanner::StepPlanner()
-    : total_(0), index_(0), remaining_(0), cruise_q8_(256), c0_q8_(256), cross_k_(NONE), special_q8_(0),
+    : total_(0), index_(0), remaining_(0), cruise_q8_(256), c0_q8_(256), c0_rs_(0), cross_k_(NONE), special_q8_(0),
       stopping_(false),
-      stop_c0_q8_(256), stop_floor_q8_(0), carry_q8_(0) {}
+      stop_c0_q8_(256), stop_c0_rs_(0), stop_floor_q8_(0), carry_q8_(0) {}
 
 void StepPlanner::begin(uint32_t steps, uint32_t rate, uint32_t accel) {
     if (rate == 0) rate = 1;
@@ -71,6 +71,7 @@ void StepPlanner::begin(uint32_t steps, uint32_t rate, uint32_t accel) {
     cruise_q8_ = F_Q8 / rate;
     if (cruise_q8_ < 256) cruise_q8_ = 256;
     c0_q8_ = c0_q8(accel);
+    c0_rs_ = mul_q16(c0_q8_, INV_SQRT2_Q16);
     cross_k_ = NONE;
     special_q8_ = 0;
     if (steps == 0) return;
@@ -91,7 +92,7 @@ void StepPlanner::begin(uint32_t steps, uint32_t rate, uint32_t accel) {
                 ramp_part = mul_q16(c0_over_root_sum(c0_q8_, 4096 * x + g, 4096 * x), static_cast<uint16_t>(g << 4))
                             << 6;
             } else {
-                ramp_part = mul_q16(ramp_q8(c0_q8_, x), static_cast<uint16_t>(g << 4));
+                ramp_part = mul_q16(ramp_q8(c0_q8_, c0_rs_, x), static_cast<uint16_t>(g << 4));
             }
             t += ramp_part;
         }
@@ -103,27 +104,47 @@ void StepPlanner::begin(uint32_t steps, uint32_t rate, uint32_t accel) {
         // Odd triangle: the middle step m straddles the peak; it lasts
         // c0 (sqrt(4m + 2) - sqrt(4m)) = 2 c0 / (sqrt(4m + 2) + sqrt(4m)).
         const uint32_t m = (steps - 1) / 2;
-        special_q8_ = m < (1UL << 27) ? 2 * c0_over_root_sum(c0_q8_, 4 * m + 2, 4 * m) : ramp_q8(c0_q8_, m);
+        special_q8_ = m < (1UL << 27) ? 2 * c0_over_root_sum(c0_q8_, 4 * m + 2, 4 * m) : ramp_q8(c0_q8_, c0_rs_, m);
     }
 }
 
-uint32_t StepPlanner::ramp_q8(uint32_t c0, uint32_t k) const {
+uint32_t StepPlanner::ramp_q8(uint32_t c0, uint32_t c0_rs, uint32_t k) {
     if (k == 0) return c0;
     if (k < TABLE_K) {
         const uint16_t mant = flash_u16(&RAMP_MANT[k]);
         return mul_q16(c0, mant) >> flash_u8(&RAMP_SHIFT[k]);
     }
-    // R(k) = rsqrt(x) / sqrt(2), x = 2k + 1 = m 4^e with m in [1, 4).
-    const uint32_t x = 2 * k + 1;
-    uint8_t e = 0;
-    while (e < 15 && (x >> (2 * e + 2)) != 0) ++e;
-    const uint32_t m_q14 = 2 * e >= 14 ? x >> (2 * e - 14) : x << (14 - 2 * e);
+    // R(k) = rsqrt(x) / sqrt(2), x = 2k + 1 = m 4^e with m in [1, 4); c0_rs = c0 / sqrt(2).
+    // m in 1/2^14 is x shifted right by 2e - 14 (even): found with byte shifts and at most
+    // three 2-bit steps, since variable 32-bit shifts are loops on the AVR.
+    uint32_t x = 2 * k + 1;
+    int8_t s = 0;  // right shift applied to x
+    if (x >= (1UL << 24)) {
+        x >>= 8;
+        s = 8;
+    }
+    if (x >= (1UL << 16)) {
+        x >>= 8;
+        s = static_cast<int8_t>(s + 8);
+    }
+    while (x < (1UL << 14)) {
+        x <<= 2;
+        s = static_cast<int8_t>(s - 2);
+    }
+    const uint16_t m_q14 = static_cast<uint16_t>(x);
+    uint8_t e = static_cast<uint8_t>((s + 14) / 2);
     const uint16_t idx = static_cast<uint16_t>((m_q14 >> 8) - 64);
     const uint8_t frac = static_cast<uint8_t>(m_q14 & 0xFF);
     const uint16_t lo = flash_u16(&RSQRT_Q16[idx]);
     const uint16_t hi = flash_u16(&RSQRT_Q16[idx + 1]);
-    const uint16_t rs = static_cast<uint16_t>(lo - ((static_cast<uint32_t>(lo - hi) * frac) >> 8));
-    return mul_q16(mul_q16(c0, INV_SQRT2_Q16), rs) >> e;
+    const uint16_t rs = static_cast<uint16_t>(lo - ((static_cast<uint16_t>(lo - hi) * static_cast<uint32_t>(frac)) >> 8));
+    uint32_t r = mul_q16(c0_rs, rs);
+    if (e >= 8) {
+        r >>= 8;
+        e = static_cast<uint8_t>(e - 8);
+    }
+    while (e--) r >>= 1;
+    return r;
 }
 
 uint32_t StepPlanner::interval_q8(uint32_t index) const {
@@ -133,11 +154,11 @@ uint32_t StepPlanner::interval_q8(uint32_t index) const {
     uint32_t q8;
     if (cross_k_ != NONE) {
         if (k > cross_k_) return cruise_q8_;
-        q8 = k == cross_k_ ? special_q8_ : ramp_q8(c0_q8_, k);
+        q8 = k == cross_k_ ? special_q8_ : ramp_q8(c0_q8_, c0_rs_, k);
     } else if (special_q8_ != 0 && index == total_ / 2) {
         q8 = special_q8_;
     } else {
-        q8 = ramp_q8(c0_q8_, k);
+        q8 = ramp_q8(c0_q8_, c0_rs_, k);
     }
     return q8 < cruise_q8_ ? cruise_q8_ : q8;
 }
@@ -146,7 +167,7 @@ uint32_t StepPlanner::next_interval() {
     if (remaining_ == 0) return 0;
     uint32_t q8;
     if (stopping_) {
-        q8 = ramp_q8(stop_c0_q8_, remaining_ - 1);
+        q8 = ramp_q8(stop_c0_q8_, stop_c0_rs_, remaining_ - 1);
         if (q8 < stop_floor_q8_) q8 = stop_floor_q8_;
     } else {
         q8 = interval_q8(index_);
@@ -156,6 +177,93 @@ uint32_t StepPlanner::next_interval() {
     ++index_;
     --remaining_;
     return sum >> 8;
+}
+
+namespace {
+// Ramp steps from this distance on go out in groups, each step's interval on the chord
+// between the group's exact end points: with G <= k / 16 the chord is within
+// (3/32) (G/k)^2 < 4e-4 of the exact interval (R is convex), a fraction of a tick where
+// steps are fast, and the main loop computes two intervals per group, not one per step.
+const uint32_t GROUP_MIN_K = 64;
+const uint8_t GROUP_MAX = 64;
+
+// Largest power of two G <= GROUP_MAX with G * 16 <= k (1 below GROUP_MIN_K), and its log2.
+uint8_t group_for(uint32_t k, uint8_t& shift) {
+    shift = 0;
+    if (k < GROUP_MIN_K) return 1;
+    uint8_t g = 4;
+    shift = 2;
+    while (g < GROUP_MAX && static_cast<uint32_t>(g) * 32 <= k) {
+        g = static_cast<uint8_t>(g << 1);
+        ++shift;
+    }
+    return g;
+}
+
+// For a group counting down from k: its far end k - G must still have G * 16 <= k - G.
+uint8_t group_down_for(uint32_t k, uint8_t& shift) {
+    uint8_t g = group_for(k, shift);
+    while (g > 1 && static_cast<uint32_t>(g) * 17 > k) {
+        g = static_cast<uint8_t>(g >> 1);
+        --shift;
+    }
+    if (g < 4) {  // groups start at 4 steps
+        g = 1;
+        shift = 0;
+    }
+    return g;
+}
+
+// The slope (b - a) / 2^shift as an int16, or false when it does not fit.
+bool slope_q8(uint32_t a, uint32_t b, uint8_t shift, int16_t& add) {
+    const int32_t d = static_cast<int32_t>(b - a) >> shift;
+    if (d > 32767 || d < -32768) return false;
+    add = static_cast<int16_t>(d);
+    return true;
+}
+}  // namespace
+
+uint8_t StepPlanner::next_run(uint32_t& q8, int16_t& add, uint8_t max_count) {
+    add = 0;
+    if (remaining_ == 0 || max_count == 0) return 0;
+    uint8_t n = 1;
+    uint8_t shift = 0;
+    if (stopping_) {
+        // k = remaining - 1 counts down to 0; a group needs its far end (k - G) >= 0.
+        const uint32_t k = remaining_ - 1;
+        q8 = ramp_q8(stop_c0_q8_, stop_c0_rs_, k);
+        uint8_t g = group_down_for(k, shift);
+        if (g > max_count || g > k) g = 1;
+        if (g > 1 && q8 >= stop_floor_q8_ &&
+            slope_q8(q8, ramp_q8(stop_c0_q8_, stop_c0_rs_, k - g), shift, add))
+            n = g;
+        if (q8 < stop_floor_q8_) q8 = stop_floor_q8_;
+    } else if (cross_k_ != NONE && index_ > cross_k_ && total_ - 1 - index_ > cross_k_) {
+        // Cruise: steps with index < total - 1 - cross_k all last cruise_q8_.
+        const uint32_t cruise_left = total_ - 1 - cross_k_ - index_;
+        n = cruise_left < max_count ? static_cast<uint8_t>(cruise_left) : max_count;
+        q8 = cruise_q8_;
+    } else {
+        q8 = interval_q8(index_);
+        const uint32_t mirror = total_ - 1 - index_;
+        if (index_ < mirror) {  // accelerating: k = index counts up
+            const uint8_t g = group_for(index_, shift);
+            // the whole group before the middle, its far end (k + G) on the ramp
+            if (g > 1 && g <= max_count && 2 * (index_ + g - 1) < total_ - 1 &&
+                (cross_k_ == NONE || index_ + g <= cross_k_) &&
+                slope_q8(q8, ramp_q8(c0_q8_, c0_rs_, index_ + g), shift, add))
+                n = g;
+        } else if (index_ > mirror && (cross_k_ == NONE || mirror < cross_k_)) {  // decelerating: k counts down
+            const uint8_t g = group_down_for(mirror, shift);
+            if (g > 1 && g <= max_count && g <= mirror &&
+                slope_q8(q8, ramp_q8(c0_q8_, c0_rs_, mirror - g), shift, add))
+                n = g;
+        }
+    }
+    if (n == 1) add = 0;
+    index_ += n;
+    remaining_ -= n;
+    return n;
 }
 
 void StepPlanner::rewind(uint32_t steps) {
@@ -178,6 +286,7 @@ uint32_t StepPlanner::stop(uint32_t a_max) {
     if (n >= remaining_) return remaining_;  // the planned deceleration ends sooner
     stopping_ = true;
     stop_c0_q8_ = c0_q8(a_max);
+    stop_c0_rs_ = mul_q16(stop_c0_q8_, INV_SQRT2_Q16);
     stop_floor_q8_ = last_q8;
     remaining_ = n;
     return n;

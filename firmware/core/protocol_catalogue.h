@@ -4,6 +4,7 @@
 // explicit little-endian pack/unpack, so the layout never depends on the compiler.
 #pragma once
 #include <stdint.h>
+#include <string.h>
 
 namespace proto {
 
@@ -11,6 +12,17 @@ static const uint8_t PROTOCOL_VERSION = 1;
 static const uint32_t CATALOGUE_HASH = 0x4F006524UL;
 static const uint8_t MAX_PAYLOAD = 64;
 
+// Little-endian fields. On little-endian targets (the AVR, x86) a fixed-size memcpy,
+// which compilers turn into plain loads and stores: the byte loop's variable shifts
+// are library loops on the AVR, and SAMPLEs are packed hundreds of times a second.
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+template <typename T> inline T get_le(const uint8_t* p) {
+    T v;
+    memcpy(&v, p, sizeof(T));
+    return v;
+}
+template <typename T> inline void put_le(uint8_t* p, T v) { memcpy(p, &v, sizeof(T)); }
+#else
 template <typename T> inline T get_le(const uint8_t* p) {
     T v = 0;
     for (uint8_t i = 0; i < sizeof(T); ++i) v |= static_cast<T>(static_cast<T>(p[i]) << (8 * i));
@@ -19,6 +31,7 @@ template <typename T> inline T get_le(const uint8_t* p) {
 template <typename T> inline void put_le(uint8_t* p, T v) {
     for (uint8_t i = 0; i < sizeof(T); ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
 }
+#endif
 
 namespace status {
 static const uint8_t OK = 0;

@@ -14,7 +14,12 @@ const uint16_t CFG_MODE_SINGLE = 1u << 8;
 const uint8_t CFG_DR_SHIFT = 5;
 const uint16_t CFG_COMP_QUE_DISABLE = 0x3u;  // COMP_MODE/POL/LAT = 0 (defaults)
 // Samples per second for DR = 000 .. 111.
-const uint16_t SPS[8] = {8, 16, 32, 64, 128, 250, 475, 860};
+constexpr uint16_t SPS[8] = {8, 16, 32, 64, 128, 250, 475, 860};
+constexpr uint32_t wait_for(uint16_t sps) {
+    return 1000000UL / sps + (1000000UL / sps) / 10 + 100;
+}
+// poll() runs every main-loop pass: the configured wait is a constant, not a division.
+constexpr uint32_t CONFIGURED_WAIT_US = wait_for(SPS[cfg::ADS1115_DR_BITS & 0x7u]);
 }  // namespace
 
 uint16_t Ads1115::config_word(uint8_t pga_bits, uint8_t dr_bits) {
@@ -24,8 +29,7 @@ uint16_t Ads1115::config_word(uint8_t pga_bits, uint8_t dr_bits) {
 }
 
 uint32_t Ads1115::conversion_wait_us(uint8_t dr_bits) {
-    const uint32_t nominal = 1000000UL / SPS[dr_bits & 0x7u];
-    return nominal + nominal / 10 + 100;
+    return wait_for(SPS[dr_bits & 0x7u]);
 }
 
 Ads1115::Ads1115(uint8_t address7) : address_(address7), started_(false), started_at_us_(0) {}
@@ -34,7 +38,7 @@ bool Ads1115::start() {
     const uint16_t cfg = config_word(cfg::ADS1115_PGA_BITS, cfg::ADS1115_DR_BITS);
     const uint8_t frame[3] = {REG_CONFIG, static_cast<uint8_t>(cfg >> 8), static_cast<uint8_t>(cfg & 0xFF)};
     started_ = hal::twi_write(address_, frame, sizeof frame);
-    started_at_us_ = hal::micros();
+    started_at_us_ = static_cast<uint32_t>(hal::micros());
     return started_;
 }
 
@@ -48,8 +52,9 @@ bool Ads1115::read_register(uint8_t reg, uint16_t& value) {
 
 int8_t Ads1115::poll(int16_t& counts) {
     if (!started_) return -1;
-    const uint64_t elapsed = hal::micros() - started_at_us_;
-    if (elapsed < conversion_wait_us(cfg::ADS1115_DR_BITS)) return 0;
+    // 32-bit modular difference: exact for waits far below the 71-minute wrap.
+    const uint32_t elapsed = static_cast<uint32_t>(hal::micros()) - started_at_us_;
+    if (elapsed < CONFIGURED_WAIT_US) return 0;
     uint16_t value;
     if (!read_register(REG_CONFIG, value)) {
         started_ = false;

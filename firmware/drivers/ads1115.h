@@ -34,7 +34,7 @@ private:
     bool read_register(uint8_t reg, uint16_t& value);
     uint8_t address_;
     bool started_;
-    uint64_t started_at_us_;
+    uint32_t started_at_us_;
 };
 
 }  // namespace drv

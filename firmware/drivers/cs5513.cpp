@@ -34,17 +34,7 @@ void Cs5513::start(uint32_t timeout_us, uint64_t valid_from_us) {
     started_at_us_ = hal::micros();
 }
 
-uint32_t Cs5513::clock_word() {
-    uint32_t word = 0;
-    for (uint8_t i = 0; i < WORD_BITS; ++i) {
-        hal::gpio_write(hal::PIN_RES_SCLK, true);
-        hal::delay_us(1);
-        word = (word << 1) | (hal::gpio_read(hal::PIN_RES_SDO) ? 1u : 0u);
-        hal::gpio_write(hal::PIN_RES_SCLK, false);
-        hal::delay_us(1);
-    }
-    return word;
-}
+uint32_t Cs5513::clock_word() { return hal::res_shift_in(WORD_BITS); }
 
 int8_t Cs5513::poll(int32_t& counts, uint8_t& flags) {
     if (!armed_) return -1;

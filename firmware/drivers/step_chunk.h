@@ -14,7 +14,7 @@ namespace drv {
 static const uint32_t STEP_SINGLE_MAX_TICKS = 0x10000UL;
 static const uint32_t STEP_CHAIN_TICKS = 0x8000UL;
 
-inline uint16_t step_take_chunk(uint32_t& left) {
+__attribute__((always_inline)) inline uint16_t step_take_chunk(uint32_t& left) {
     const uint32_t chunk = left > STEP_SINGLE_MAX_TICKS ? STEP_CHAIN_TICKS : left;
     left -= chunk;
     return static_cast<uint16_t>(chunk - 1);

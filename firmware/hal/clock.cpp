@@ -7,9 +7,11 @@
 namespace hal {
 
 namespace {
-// Timer3 ticks at 2 MHz; 64-bit tick count = ovf_hi:ovf_lo:TCNT3 (16 + 32 + 16 bits).
-volatile uint32_t g_ovf_lo = 0;
-volatile uint16_t g_ovf_hi = 0;
+// Timer3 ticks at 2 MHz and overflows every 65536 ticks = 32768 us; the overflow ISR
+// adds that to g_us_base, so micros() is one 64-bit add of TCNT3 / 2 (no 64-bit shifts:
+// they are library loops on the AVR, and the main loop reads the clock often).
+const uint16_t US_PER_OVERFLOW = 32768;
+volatile uint64_t g_us_base = 0;
 }  // namespace
 
 void clock_init() {
@@ -21,20 +23,16 @@ void clock_init() {
 }
 
 uint64_t micros() {
-    uint32_t lo;
-    uint16_t hi, t;
+    uint64_t base;
+    uint16_t t;
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
-        lo = g_ovf_lo;
-        hi = g_ovf_hi;
+        base = g_us_base;
         t = TCNT3;
         // An overflow that happened after cli() is pending, not yet counted. If TCNT3
         // is small it wrapped before we read it: count the overflow here.
-        if ((TIFR3 & (1 << TOV3)) && t < 0x8000) {
-            if (++lo == 0) ++hi;
-        }
+        if ((TIFR3 & (1 << TOV3)) && t < 0x8000) base += US_PER_OVERFLOW;
     }
-    const uint64_t ticks = (static_cast<uint64_t>(hi) << 48) | (static_cast<uint64_t>(lo) << 16) | t;
-    return ticks >> 1;
+    return base + (t >> 1);
 }
 
 uint16_t ticks16() { return TCNT3; }  // no ISR touches Timer3's 16-bit registers
@@ -45,8 +43,4 @@ void delay_us(uint8_t us) {
 
 }  // namespace hal
 
-ISR(TIMER3_OVF_vect) {
-    const uint32_t lo = hal::g_ovf_lo + 1;
-    hal::g_ovf_lo = lo;
-    if (lo == 0) hal::g_ovf_hi = hal::g_ovf_hi + 1;
-}
+ISR(TIMER3_OVF_vect) { hal::g_us_base = hal::g_us_base + hal::US_PER_OVERFLOW; }

@@ -61,6 +61,20 @@ void gpio_input(Pin pin, bool pullup) {
     gpio_write(pin, pullup);  // PORT bit of an input = pull-up
 }
 
+uint32_t res_shift_in(uint8_t bits) {
+    uint32_t word = 0;
+    for (uint8_t i = 0; i < bits; ++i) {
+        // sbi/cbi: single instructions, so the ISRs' writes to PORTC are never undone.
+        PINS_RES_SCLK_PORT |= 1 << PINS_RES_SCLK_BIT;
+        __asm__ __volatile__("rjmp .+0\n\trjmp .+0" ::: "memory");  // 4 cycles: high >= 250 ns
+        word <<= 1;
+        if (PINS_RES_SDO_PIN & (1 << PINS_RES_SDO_BIT)) word |= 1;
+        PINS_RES_SCLK_PORT &= ~(1 << PINS_RES_SCLK_BIT);
+        __asm__ __volatile__("rjmp .+0\n\trjmp .+0" ::: "memory");  // low >= 250 ns
+    }
+    return word;
+}
+
 bool gpio_read(Pin pin) {
     switch (pin) {
         HAL_PIN_TABLE(GPIO_READ_CASE)

@@ -29,5 +29,10 @@ void gpio_output(Pin pin, bool level);  // make an output, driving `level` first
 void gpio_input(Pin pin, bool pullup);
 void gpio_write(Pin pin, bool level);
 bool gpio_read(Pin pin);
+// CS5513 serial port: clocks `bits` bits in, MSB first: SCLK rises, stays high >= 250 ns,
+// SDO is read, SCLK falls (the part shifts the next bit out) and stays low >= 250 ns
+// (the CS55xx serial timing t1/t2). On the AVR a tight loop on the port registers
+// (~1.3 us per bit), not gpio_write/gpio_read.
+uint32_t res_shift_in(uint8_t bits);
 
 }  // namespace hal

@@ -37,6 +37,11 @@
 #define PINS_EN_BIT 2
 #define PINS_ISRC_PORT PORTC
 #define PINS_ISRC_BIT 3
+// The CS5513 word is shifted in with direct port access (gpio.cpp: res_shift_in).
+#define PINS_RES_SCLK_PORT PORTC
+#define PINS_RES_SCLK_BIT 1
+#define PINS_RES_SDO_PIN PINC
+#define PINS_RES_SDO_BIT 2
 
 // X-macro: (hal::Pin, port letter, bit). The order need not match the enum; gpio.cpp
 // expands it into switch statements with constant addresses (sbi/cbi where possible),

@@ -264,7 +264,10 @@ int main(int argc, char **argv) {
             const avr_flashaddr_t pc_before = H.avr->pc;
             const int state = avr_run(H.avr);
             if (state == cpu_Done || state == cpu_Crashed) break;
-            if (!avr_cycle_timer_status(H.avr, canary, NULL)) {  // simavr reset the AVR (watchdog)
+            // simavr reset the AVR (watchdog)? Only worth asking (a walk of the timer list)
+            // when the PC has just arrived at the reset vector.
+            if (H.avr->pc - H.avr->reset_pc < 16 && pc_before - H.avr->reset_pc >= 16 &&
+                !avr_cycle_timer_status(H.avr, canary, NULL)) {
                 H.resets++;
                 after_reset(H.avr->data[REG_MCUSR] & (1u << MCUSR_WDRF) ? "watchdog" : "unknown");
             }

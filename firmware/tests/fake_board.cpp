@@ -16,7 +16,7 @@ FakeBoard::FakeBoard()
       min_interval_ticks(0xFFFFFFFFUL), heater_mV(0), heater_requested_mV(0), sense_on(false), motor_enabled(false),
       kicks(0), interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), underruns(0),
       truncations(0), record_steps(0), record_valid(false), record_writes(0), rx_head_(0), rx_count_(0),
-      tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), dir_(1),
+      tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), carry_(0), dir_(1),
       expect_more_(false), position_busy_(false),
       position_started_(0), resistance_busy_(false), resistance_started_(0), sense_since_(0) {}
 
@@ -24,13 +24,17 @@ void FakeBoard::advance_us(uint64_t us) {
     const uint64_t target = now + us;
     const uint64_t target_tick = target * (STEP_TICK_HZ / 1000000UL);
     while (step_count_ > 0) {
-        const Step& s = steps_[step_head_];
-        if (last_edge_tick_ + s.ticks > target_tick) break;
-        last_edge_tick_ += s.ticks;
+        Step& s = steps_[step_head_];
+        const uint32_t sum = s.q8 + carry_;
+        if (last_edge_tick_ + (sum >> 8) > target_tick) break;
+        last_edge_tick_ += sum >> 8;
+        carry_ = static_cast<uint8_t>(sum & 0xFF);
+        s.q8 += s.add;
         position += s.dir + (s.dir > 0 ? step_glitch : -step_glitch);
         ++steps_executed;
         if (position < min_position) min_position = position;
         if (position > max_position) max_position = position;
+        if (--s.count > 0) continue;
         step_head_ = static_cast<uint8_t>((step_head_ + 1) % STEP_RING_MAX);
         --step_count_;
         if (step_count_ == 0 && expect_more_ && underruns != 0xFFFF) ++underruns;  // ran dry mid-move
@@ -99,18 +103,22 @@ uint8_t FakeBoard::step_space() {
     return step_count_ >= size ? 0 : static_cast<uint8_t>(size - step_count_);
 }
 
-void FakeBoard::step_push(int8_t direction, uint32_t interval_ticks, bool last) {
-    if (step_space() == 0) return;
+void FakeBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) {
+    if (step_space() == 0 || count == 0) return;
     expect_more_ = !last;
     if (step_count_ == 0) {
         last_edge_tick_ = now * (STEP_TICK_HZ / 1000000UL);  // first step: from now
+        carry_ = 0;
         dir_ = direction >= 0 ? 1 : -1;  // steps queued while running keep the direction
-    } else if (interval_ticks < min_interval_ticks) {
-        min_interval_ticks = interval_ticks;
+    } else {
+        const uint32_t shortest = add_q8 < 0 ? interval_q8 + static_cast<int32_t>(add_q8) * (count - 1) : interval_q8;
+        if ((shortest >> 8) < min_interval_ticks) min_interval_ticks = shortest >> 8;
     }
     Step& s = steps_[(step_head_ + step_count_) % STEP_RING_MAX];
     s.dir = dir_;
-    s.ticks = interval_ticks;
+    s.q8 = interval_q8;
+    s.add = add_q8;
+    s.count = count;
     ++step_count_;
 }
 
@@ -120,12 +128,28 @@ void FakeBoard::step_halt() {
     ++halts;
 }
 
-// The first queued entry is the pending edge (its time is already running).
-uint16_t FakeBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
+// The first queued step is the pending edge (its time is already running); keeps it
+// and `keep` more, splitting a run if needed.
+uint32_t FakeBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
     ++truncations;
-    const uint8_t kept = step_count_ == 0 ? 0 : (step_count_ - 1 < keep ? step_count_ : 1 + keep);
-    const uint16_t dropped = static_cast<uint16_t>(step_count_ - kept);
-    step_count_ = kept;
+    uint32_t want = step_count_ == 0 ? 0 : 1u + keep;
+    uint32_t kept = 0, dropped = 0;
+    uint8_t entries = 0;
+    for (uint8_t i = 0; i < step_count_; ++i) {
+        Step& s = steps_[(step_head_ + i) % STEP_RING_MAX];
+        if (want == 0) {
+            dropped += s.count;
+            continue;
+        }
+        ++entries;
+        if (s.count > want) {
+            dropped += s.count - want;
+            s.count = static_cast<uint8_t>(want);
+        }
+        kept += s.count;
+        want -= s.count;
+    }
+    step_count_ = entries;
     rest_position = position + dir_ * static_cast<int32_t>(kept);
     return dropped;
 }

@@ -57,7 +57,7 @@ public:
     int32_t min_position;
     int32_t max_position;
     uint32_t steps_executed;
-    uint32_t min_interval_ticks;   // shortest interval pushed (excluding a burst's first)
+    uint32_t min_interval_ticks;   // shortest interval pushed, whole ticks (excluding a burst's first)
     uint16_t heater_mV;              // equivalent voltage applied (the driver's duty scale)
     uint16_t heater_requested_mV;
     bool sense_on;
@@ -82,12 +82,12 @@ public:
     uint16_t serial_write(const uint8_t* data, uint16_t n) override;
     void motor_enable(bool on) override { motor_enabled = on; }
     uint8_t step_space() override;
-    void step_push(int8_t direction, uint32_t interval_ticks, bool last) override;
+    void step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
     bool step_busy() override { return step_count_ > 0; }
     int32_t step_position() override { return position; }
     void step_set_position(int32_t steps) override { position = steps; }
     void step_halt() override;
-    uint16_t step_truncate(uint8_t keep, int32_t& rest_position) override;
+    uint32_t step_truncate(uint8_t keep, int32_t& rest_position) override;
     uint16_t step_underruns() override { return underruns; }
     uint16_t heater_set_mV(uint16_t mV) override;
     bool sense_current(bool on) override;
@@ -111,9 +111,11 @@ public:
     uint16_t i2c_recoveries() override { return i2c_recovery_count; }
 
 private:
-    struct Step {
+    struct Step {  // a run of `count` steps: the next lasts q8 (1/256 tick), then q8 += add
         int8_t dir;
-        uint32_t ticks;
+        uint32_t q8;
+        int16_t add;
+        uint8_t count;
     };
     uint8_t rx_[RX_CAP];
     uint16_t rx_head_, rx_count_;
@@ -123,6 +125,7 @@ private:
     Step steps_[STEP_RING_MAX];
     uint8_t step_head_, step_count_;
     uint64_t last_edge_tick_;
+    uint8_t carry_;  // fraction of a tick carried to the next step
     int8_t dir_;
     bool expect_more_;
     bool position_busy_;

@@ -141,6 +141,18 @@ void gpio_write(Pin pin, bool lvl) {
 
 bool gpio_read(Pin pin) { return fake::level(pin); }
 
+uint32_t res_shift_in(uint8_t bits) {  // the same edges, recorded, 1 us apart
+    uint32_t word = 0;
+    for (uint8_t i = 0; i < bits; ++i) {
+        gpio_write(PIN_RES_SCLK, true);
+        delay_us(1);
+        word = (word << 1) | (gpio_read(PIN_RES_SDO) ? 1u : 0u);
+        gpio_write(PIN_RES_SCLK, false);
+        delay_us(1);
+    }
+    return word;
+}
+
 void clock_init() {}
 uint64_t micros() { return s.now_us; }
 void delay_us(uint8_t us) { s.now_us += us; }

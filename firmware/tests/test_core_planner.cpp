@@ -174,3 +174,78 @@ TEST(core_planner_stop_decelerates_at_the_limit_never_faster) {
     for (int i = 0; i < 900; ++i) q.next_interval();
     CHECK_EQ(q.stop(320000), 100u);
 }
+
+// The step generator gets runs (cruise as up to 255 steps per entry, ramp groups on
+// a chord) and carries the fraction of a tick itself: expanded, the runs must stay
+// within a tick or so of next_interval()'s exact steps, step by step and in total.
+TEST(core_planner_runs_expand_to_nearly_the_same_steps) {
+    const uint32_t cases[][3] = {{64000, 16000, 320000}, {1001, 7777, 12345}, {3, 100, 50},
+                                 {200000, 16000, 32000}, {999, 16000, 320000}, {1, 1, 1},
+                                 {20001, 16000, 1000}, {5000, 300, 1}};
+    for (unsigned c = 0; c < sizeof cases / sizeof cases[0]; ++c) {
+        fw::StepPlanner a, b;
+        a.begin(cases[c][0], cases[c][1], cases[c][2]);
+        b.begin(cases[c][0], cases[c][1], cases[c][2]);
+        uint32_t entries = 0, steps = 0;
+        uint64_t t_exact = 0, t_runs = 0;
+        int64_t worst_step = 0, worst_lag = 0;
+        uint8_t carry = 0;
+        while (!b.finished()) {
+            uint32_t q8 = 0;
+            int16_t add = 0;
+            const uint8_t n = b.next_run(q8, add, 255);
+            CHECK(n >= 1);
+            ++entries;
+            for (uint8_t i = 0; i < n; ++i) {
+                const uint32_t sum = q8 + carry;
+                carry = static_cast<uint8_t>(sum & 0xFF);
+                q8 += add;
+                const uint32_t exact = a.next_interval();
+                t_exact += exact;
+                t_runs += sum >> 8;
+                const int64_t d = static_cast<int64_t>(sum >> 8) - exact;
+                // 4e-4 of the interval plus rounding (each side carries its own fraction)
+                if ((d < 0 ? -d : d) > static_cast<int64_t>(exact / 2500 + 2)) {
+                    if (worst_step < 5) printf("case %u step %u: %lld vs exact %u\n", c, steps, static_cast<long long>(d), exact);
+                    ++worst_step;
+                }
+                const int64_t lag = static_cast<int64_t>(t_runs) - static_cast<int64_t>(t_exact);
+                if ((lag < 0 ? -lag : lag) > worst_lag) worst_lag = lag < 0 ? -lag : lag;
+                ++steps;
+            }
+        }
+        CHECK(a.finished());
+        CHECK_EQ(steps, cases[c][0]);
+        CHECK_EQ(worst_step, 0);
+        // each edge within 0.02 % of the move's time (or 2 ticks) of where the exact plan puts it
+        CHECK(worst_lag <= static_cast<int64_t>(t_exact / 5000 + 2));
+        if (c == 0) CHECK(entries < 600);  // 2 x 400 ramp steps + 63,200 cruise steps in runs
+        if (c == 3) printf("planner: runs for 200000 steps at 16000/s, 32000/s^2: %u entries, worst edge lag %lld ticks\n",
+                           entries, static_cast<long long>(worst_lag));
+    }
+    // a stop after a rewind: the same number of steps, nearly the same times
+    fw::StepPlanner a, b;
+    a.begin(200000, 16000, 32000);
+    b.begin(200000, 16000, 32000);
+    for (int i = 0; i < 20000; ++i) a.next_interval();
+    uint32_t done = 0, q8 = 0;
+    int16_t add = 0;
+    while (done < 20000) done += b.next_run(q8, add, static_cast<uint8_t>(20000 - done < 255 ? 20000 - done : 255));
+    a.rewind(50);
+    b.rewind(50);
+    CHECK_EQ(a.stop(320000), b.stop(320000));
+    uint64_t ta = 0, tb = 0;
+    uint8_t carry = 0;
+    while (!b.finished()) {
+        const uint8_t n = b.next_run(q8, add, 255);
+        for (uint8_t i = 0; i < n; ++i) {
+            const uint32_t sum = q8 + carry;
+            carry = static_cast<uint8_t>(sum & 0xFF);
+            q8 += add;
+            tb += sum >> 8;
+            ta += a.next_interval();
+        }
+    }
+    CHECK(a.finished());
+    CHECK(tb >= ta && tb - ta <= ta / 2000 + 2);
+}

@@ -47,10 +47,12 @@ def test_moves_at_the_rate_limit_count_every_step_while_sampling(firmware_dir):
     with simavr_port(firmware_dir, trace=True) as (port, bench):
         ex = sc.Exchange(port, settle_s=0.05, first_reply_s=2.0)
         sc.handshake(ex)
+        start = len(ex.received)
         ex.send(msg.SetSampling(1, 10_000))
         ex.send(msg.MoveTo(2, 16_000, 16_000, 320_000))
         ex.send(msg.MoveTo(3, -8_000, 16_000, 320_000))
-        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.SEGMENT_DONE and m.segment == 3, 60)
+        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.SEGMENT_DONE and m.segment == 3, 60,
+                    since=start)
         ex.wait_device_s(0.1)
         qs = ex.send_for(msg.Heartbeat(), msg.QueueStatus)
     s = bench.summary

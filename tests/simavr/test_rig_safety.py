@@ -11,7 +11,7 @@ import time
 
 from tests import conformance_scenarios as sc
 from tests.simavr.conftest import SIMAVR_BENCH, simavr_port
-from tsa_bench.protocol import msg
+from tsa_bench.protocol import encode, msg
 from tsa_bench.simavr import SimavrBench, SimavrSettings
 
 E, S, STATE = msg.EventKind, msg.Status, msg.DeviceState
@@ -23,13 +23,18 @@ def exchange(port) -> sc.Exchange:
 
 
 
-def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 30.0) -> msg.Boot:
-    """The first BOOT among the messages from index ``since`` on (no heartbeats meanwhile)."""
-    start, deadline = since, time.monotonic() + timeout_s
+def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 30.0, heartbeat: bool = False) -> msg.Boot:
+    """The first BOOT among the messages from index ``since`` on; with ``heartbeat`` a
+    HEARTBEAT every 0.2 s of wall time meanwhile (answered or not: the device may hang)."""
+    start, deadline, beat = since, time.monotonic() + timeout_s, time.monotonic()
     while time.monotonic() < deadline:
         boots = [m for m in ex.received[start:] if isinstance(m, msg.Boot)]
         if boots:
             return boots[-1]
+        if heartbeat and time.monotonic() - beat > 0.2:
+            ex.seq += 1
+            ex.port.write(encode(msg.Heartbeat(), ex.seq))
+            beat = time.monotonic()
         ex._read_some()
     raise AssertionError("no BOOT after the reset")
 
@@ -43,8 +48,9 @@ def test_position_kept_across_a_dtr_reset_and_unknown_after_one_mid_move(firmwar
         assert bench.boot_message.reason == msg.BootReason.POWER_ON   # the bootloader cleared PORF
         ex = exchange(port)
         sc.handshake(ex)
+        start = len(ex.received)
         ex.send(msg.MoveTo(1, 6400, 16_000, 320_000))
-        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY, 30)
+        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY, 30, since=start)
         since = len(ex.received)
         bench.reset()                                              # the host reopens the port
         boot = wait_boot(ex, since)
@@ -52,9 +58,11 @@ def test_position_kept_across_a_dtr_reset_and_unknown_after_one_mid_move(firmwar
         ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH))
         qs = ex.send_for(msg.Heartbeat(), msg.QueueStatus)
         assert qs.state == 0 and qs.step_position == 6400          # kept, and said so
+        start = len(ex.received)
         ex.send(msg.SetSampling(1, 20_000))
         ex.send(msg.MoveTo(2, 64_000, 16_000, 320_000))
-        ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.motor_moving and m.step_position > 20_000, 30)
+        ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.motor_moving and m.step_position > 20_000, 30,
+                    since=start)
         since = len(ex.received)
         bench.reset()                                              # reset mid-move
         assert wait_boot(ex, since).reason == msg.BootReason.EXTERNAL_RESET
@@ -77,8 +85,9 @@ def test_a_pulled_up_enable_releases_the_motor_and_the_position_is_unknown(firmw
     with simavr_port(firmware_dir, enable_pull="up") as (port, bench):
         ex = exchange(port)
         sc.handshake(ex)
+        start = len(ex.received)
         ex.send(msg.MoveTo(1, 6400, 16_000, 320_000))
-        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY, 30)
+        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY, 30, since=start)
         since = len(ex.received)
         bench.reset()
         wait_boot(ex, since)
@@ -89,21 +98,24 @@ def test_a_pulled_up_enable_releases_the_motor_and_the_position_is_unknown(firmw
 
 
 def test_a_hung_main_loop_is_made_safe_by_the_watchdog_interrupt_without_a_reset_loop(firmware_dir):
-    """The main loop hangs (a `rjmp .` at 3 s) with the heater on and the motor turning,
+    """The main loop hangs (a `rjmp .` at 8 s) with the heater on and the motor turning,
     on a board with the 2011 bootloader: the watchdog interrupt turns the heater off and
     stops STEP within its period, restarts the firmware without a hardware reset (that
     bootloader would reset forever), and the next BOOT says watchdog_reset with the
     position unknown (it was moving). (Before: a watchdog system reset: an endless loop
     on this bootloader, and reason external_reset on the stock one.)"""
-    with simavr_port(firmware_dir, bootloader="2011", hang_at_s=3.0) as (port, bench):
+    # 8 s of harness time: after the commands below even when the AVR runs its full lead
+    # (1 s) ahead of each of them
+    with simavr_port(firmware_dir, bootloader="2011", hang_at_s=8.0) as (port, bench):
         ex = exchange(port)
         sc.handshake(ex)
         ex.send(msg.SetSampling(1, 20_000))
         ex.send(msg.SetHeater(2, 5000))
-        ex.send(msg.MoveTo(3, 300_000, 1_000, 10_000))             # still turning at 3 s
+        ex.send(msg.MoveTo(3, 300_000, 1_000, 10_000))             # still turning at 8 s
         since = len(ex.received)
-        ex.wait_for(lambda m: isinstance(m, msg.Sample) and m.motor_moving and m.t_us > 1_000_000, 30)
-        boot = wait_boot(ex, since)
+        # heartbeats throughout: the host watchdog must not be what stops the motor
+        boot = wait_boot(ex, since, heartbeat=True)
+        assert any(isinstance(m, msg.Sample) and m.motor_moving and m.t_us > 1_000_000 for m in ex.received[since:])
         assert boot.reason == msg.BootReason.WATCHDOG_RESET
         ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH))
         qs = ex.send_for(msg.Heartbeat(), msg.QueueStatus)
@@ -148,12 +160,15 @@ def test_i2c_faults_nack_stretch_and_a_stuck_bus_recovered(firmware_dir):
     are fine, and the stuck bus is freed with SCL clocks and a STOP, counted as an EVENT
     i2c_recovered and in QUEUE_STATUS; positions come back. (Before: no recovery, every
     later sample position_invalid.)"""
-    faults = ("nack:1.6:1.8", "stretch:2.0:2.3:40", "stuck:2.5:5")
+    # harness times late enough that sampling runs by then however far the AVR ran ahead
+    # (its lead, 1 s) while the host sent the commands
+    faults = ("nack:5.0:5.2", "stretch:5.4:5.7:40", "stuck:5.9:8")
     with simavr_port(firmware_dir, twi_faults=faults) as (port, bench):
         ex = exchange(port)
         sc.handshake(ex)
+        start = len(ex.received)
         ex.send(msg.SetSampling(1, 20_000))
-        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.I2C_RECOVERED, 60)
+        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.I2C_RECOVERED, 60, since=start)
         ex.wait_device_s(0.3)
         qs = ex.send_for(msg.Heartbeat(), msg.QueueStatus)
     clock0 = bench.summary["clock_zero_s"]
@@ -162,8 +177,8 @@ def test_i2c_faults_nack_stretch_and_a_stuck_bus_recovered(firmware_dir):
     def in_window(s, t0, t1):
         return t0 + 0.01 < s.t_us * 1e-6 + clock0 < t1 - 0.01
 
-    nacked = [s for s in ex.samples if in_window(s, 1.6, 1.8)]
-    stretched = [s for s in ex.samples if in_window(s, 2.0, 2.3)]
+    nacked = [s for s in ex.samples if in_window(s, 5.0, 5.2)]
+    stretched = [s for s in ex.samples if in_window(s, 5.4, 5.7)]
     assert nacked and all(s.adc_flags & invalid for s in nacked)
     assert stretched and not any(s.adc_flags & invalid for s in stretched)
     recovered = [e for e in ex.events if e.kind == E.I2C_RECOVERED]
