@@ -64,14 +64,13 @@ def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: flo
     being written. Exit code 0 when the run ends in success, 1 when it ends otherwise or
     was killed, 2 when there is nothing to watch.
     """
-    from rich.console import Console
-
+    from tsa_bench.console.output import make_console
     from tsa_bench.console.watch import watch as do_watch
 
     if interval_s <= 0:
         click.echo("error: --interval must be > 0 (s)", err=True)
         sys.exit(EXIT_BAD_INPUT)
-    console = Console(force_terminal=None if not plain else False, soft_wrap=plain)
+    console = make_console(terminal=False if plain else None)
     sys.exit(do_watch(run_file, plain=plain, once=once, interval_s=interval_s, wait_s=wait_s, console=console))
 
 

@@ -40,11 +40,10 @@ def _read(paths: tuple[str, ...] | list[str]):
 
 
 def _console() -> Console:
-    """A rich console; wide when not a terminal (pipes, tests) so no column is cut."""
-    from rich.console import Console
+    """A rich console that never wraps or cuts a line when not on a terminal (pipes, logs, tests)."""
+    from tsa_bench.console.output import make_console
 
-    console = Console()
-    return console if console.is_terminal else Console(width=160)
+    return make_console()
 
 
 def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> Table:

@@ -15,6 +15,8 @@ from rich.console import Console
 from rich.live import Live
 from rich.text import Text
 
+from tsa_bench.console.output import make_console
+
 from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 
@@ -29,7 +31,7 @@ class ProgressDisplay:
     """Rich live line; see the module contract."""
 
     def __init__(self, console: Console | None = None) -> None:
-        self.console = console or Console(stderr=True)
+        self.console = console or make_console(stderr=True)
         self.enabled = self.console.is_terminal
         self._live: Live | None = None
         self.n_segments = 0

@@ -24,6 +24,8 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
+from tsa_bench.console.output import make_console
+
 from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
 
 _BARS = "▁▂▃▄▅▆▇█"
@@ -145,7 +147,7 @@ def watch(run_path: str | Path, *, plain: bool = False, once: bool = False, inte
           wait_s: float = 0.0, console: Console | None = None) -> int:
     """Follow ``run_path``; see the module contract."""
     run_path = Path(run_path)
-    console = console or Console()
+    console = console or make_console()
     def echo(text: str) -> None:  # a message is one line however narrow the terminal: never hard-wrapped
         console.print(text, markup=False, highlight=False, soft_wrap=True)
 
