@@ -51,7 +51,9 @@ class SimUrl:
     seed: int | None = None
 
     def bench(self) -> BenchConfig:
-        return load_bench(self.bench_path)
+        """The bench file (validated in full). Its ``port`` and ``simavr.firmware_dir`` are
+        not used by the simulated device, so the policies on them do not apply here."""
+        return load_bench(self.bench_path, allow_url=True, trust_firmware_dir=True)
 
 
 def parse_sim_url(url: str) -> SimUrl:
