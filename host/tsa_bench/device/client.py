@@ -158,7 +158,7 @@ class BenchClient:
         seconds ahead (and trip its own watchdog) while the host waits for an ACK.
         """
         deadline = time.monotonic() + timeout_s
-        t0_us: int | None = None
+        t0_us: int | None = self._last_dev_us  # device time when the wait began (as last seen)
         while True:
             if self.on_wait is not None:
                 self.on_wait()
