@@ -167,7 +167,13 @@ def run(protocol: str, bench_path: str | None, port: str | None, out_dir: str, o
         click.echo("aborted before the run started; nothing was run", err=True)
         code = EXIT_ABORTED
     finally:
-        interrupts.restore()
+        if interrupts.requested:
+            # Exiting 130: a further signal must not change that, nor kill the process
+            # while Python shuts down (it puts default handlers back, but keeps SIG_IGN).
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, signal.SIG_IGN)
+        else:
+            interrupts.restore()
     sys.exit(code)
 
 
