@@ -178,13 +178,23 @@ class RunWriter:
             except StorageFull:
                 if self.broken:
                     return
+                # no room for the samples: keep the segments and events (the STOP among them)
                 self.samples_not_stored = sum(len(b) for b in self._pending)
-                self._pending, self._segments, self._events = [], [], []
+                self._pending = []
                 reason += f"; {self.samples_not_stored} samples received after that were not stored"
+                try:
+                    self._write_pending()
+                except StorageFull:
+                    if self.broken:
+                        return
+                    self._segments, self._events = [], []
+                    reason += " (nor the last segments and events)"
         a = self._f.attrs
         a["exit_status"] = status
         a["reason"] = reason
         a["samples_lost"] = stop.samples_lost
+        if self.samples_not_stored:
+            a["samples_not_stored"] = self.samples_not_stored
         a["duration_s"] = stop.t_end
         a["wall_time_s"] = stop.wall_time_s
         self._f.close()

@@ -52,9 +52,21 @@ def available_bytes(path: str | Path) -> int:
     return free
 
 
+#: A new chunk of /segments (1024 rows) and of /events (256 rows).
+SEGMENT_CHUNK_BYTES, EVENT_CHUNK_BYTES = 1024 * 80, 256 * 48
+
+
 def flush_bytes(rows: int, segments: int, events: int) -> int:
-    """Upper bound of what one flush of that many rows may add to the file."""
-    return rows * ROW_BYTES + CHUNK_ROW_BYTES + segments * SEGMENT_ROW_BYTES + events * EVENT_ROW_BYTES + 64 * 1024
+    """Upper bound of what one flush of that many rows may add to the file (with a new
+    chunk of each table written to, and 64 KiB of metadata)."""
+    total = 64 * 1024
+    if rows:
+        total += rows * ROW_BYTES + CHUNK_ROW_BYTES
+    if segments:
+        total += segments * SEGMENT_ROW_BYTES + SEGMENT_CHUNK_BYTES
+    if events:
+        total += events * EVENT_ROW_BYTES + EVENT_CHUNK_BYTES
+    return total
 
 
 def run_bytes(samples: float, segments: int) -> int:
