@@ -75,6 +75,10 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
     from tsa_bench.models.fitting import FitError, fit, loads_g, quasi_static_mask
     from tsa_bench.models.saved import ModelFileError, save_model
 
+    if not 1 <= levels <= 200:
+        _fail(f"--levels must be 1..200 (the thesis uses 20), got {levels}")
+    if load_g is not None and not 0 <= load_g < float("inf"):
+        _fail(f"--load-g must be a mass >= 0 g, got {load_g}")
     train = _read(runs)
     val = _read(validate)
     try:

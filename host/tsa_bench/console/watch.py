@@ -156,13 +156,16 @@ def watch(run_path: str | Path, *, plain: bool = False, once: bool = False, inte
     except LiveFormatError as exc:
         echo(f"error: {exc}")
         return 2
+    except OSError as exc:
+        echo(f"error: {sidecar_path(run_path)}: cannot read the live sidecar ({exc.strerror or exc})")
+        return 2
     if tail is None:
         if not run_path.exists():
             echo(f"error: {run_path}: no such run file and no live sidecar {sidecar_path(run_path)}")
             return 2
         return _summary_from_file(run_path, echo)
     head = tail.header
-    state = WatchState(int(head.get("n_segments", 0)))
+    state = WatchState(head.get("n_segments", 0))
     title = f"{head.get('plan_name', '')}  ({run_path.name})"
     live = None
     try:
