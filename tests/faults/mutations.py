@@ -172,7 +172,7 @@ def mutate_run(src: Path, dst: Path, ops: Sequence[Op]) -> Path:
         for op, pos, pick in ops:
             try:
                 _run_op(f, g, op, pos, pick, dst, byte_ops)
-            except (OSError, KeyError, ValueError, TypeError, RuntimeError):
+            except (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError):
                 pass  # an earlier operation made this one impossible: skip it
     raw = bytearray(dst.read_bytes())
     for op, pos, pick in byte_ops:

@@ -16,7 +16,8 @@ safe loader into a node graph (positions kept) and refused, with a
 
 The checked :class:`YamlDocument` keeps the node graph (``root``) for readers that
 report errors against nodes (the protocol reader does), and :meth:`YamlDocument.data`
-converts it to plain Python (dict with text keys, list, str, int, float, bool, None),
+converts it to plain Python (dict with text keys, list, str, int, float, bool, None;
+an unquoted ``1e-3``, which YAML 1.1 leaves as text, is a number),
 refusing duplicate keys, non-text keys, non-finite numbers and every tag that is not
 plain YAML data (timestamps, binary, sets, ``!!python/...``, custom ``!tags``); merge
 keys (``<<: *defaults``) are honoured.
@@ -25,6 +26,7 @@ keys (``<<: *defaults``) are honoured.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,9 @@ from tsa_bench.documents.files import MAX_TEXT_BYTES, decode_text, read_bytes_fi
 STR, INT, FLOAT, BOOL, NULL = (f"tag:yaml.org,2002:{t}" for t in ("str", "int", "float", "bool", "null"))
 SEQ, MAP, MERGE = "tag:yaml.org,2002:seq", "tag:yaml.org,2002:map", "tag:yaml.org,2002:merge"
 _CONSTRUCT = SafeConstructor()
+# YAML 1.1 (PyYAML) resolves an unquoted "1e-3" to text because it lacks a dot; a person
+# means a number, so plain scalars of that shape are read as numbers (as by the protocol reader).
+_EXPONENT_FLOAT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
 @dataclass(frozen=True)
@@ -162,6 +167,8 @@ class YamlDocument:
                 raise self.error(node, f"unsupported tag {node.tag} on a list (plain YAML data only)")
             return [self._data(v, nonfinite) for v in node.value]
         if node.tag == STR:
+            if node.style is None and _EXPONENT_FLOAT.match(node.value):
+                return self._data(ScalarNode(FLOAT, node.value, node.start_mark, node.end_mark), nonfinite)
             return node.value
         if node.tag == INT:
             return int(_CONSTRUCT.construct_yaml_int(node))

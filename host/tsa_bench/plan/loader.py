@@ -1,7 +1,7 @@
 """Load, validate and compile a YAML protocol into a :class:`~tsa_bench.plan.model.Plan`.
 
 Top-level keys: ``name`` (required), ``description``, ``metadata`` (free-form mapping),
-``load_g`` (initial hanging mass, >= 0), ``sampling_period_s`` (0.001 .. 60 s, default
+``load_g`` (initial hanging mass, 0 .. 4294967.295 g), ``sampling_period_s`` (0.001 .. 60 s, default
 0.1), ``limits`` (any subset of :class:`Limits` fields; may only tighten the bench),
 ``defaults`` (``rate_turns_per_s``, ``accel_turns_per_s2`` for moves lacking them) and
 ``steps`` (required, non-empty; see :mod:`tsa_bench.plan.steps`).
@@ -23,7 +23,9 @@ from tsa_bench.plan.compiler import compile_ops, outer_cycles
 from tsa_bench.plan.errors import ErrorSink, PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits, loosening_problem
 from tsa_bench.plan.model import Plan
-from tsa_bench.plan.steps import MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser
+from tsa_bench.plan.steps import (
+    MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser,
+)
 from tsa_bench.plan.yamlnodes import NULL_TAG, Reader
 
 DEFAULT_SAMPLING_PERIOD_S = 0.1
@@ -90,7 +92,8 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
     metadata = _metadata(reader, top.get("metadata"))
     load_g = None
     if "load_g" in top and top["load_g"].tag != NULL_TAG:
-        load_g = reader.number(top["load_g"], "load_g", "g", ge=0)
+        load_g = reader.number(top["load_g"], "load_g", "g", ge=0, le=MAX_LOAD_G,
+                               le_name="what a bench command carries")
     period_s: float | None = DEFAULT_SAMPLING_PERIOD_S
     if "sampling_period_s" in top:
         period_s = reader.number(top["sampling_period_s"], "sampling_period_s", "s",

@@ -14,6 +14,7 @@ voltage beyond 65.535 V, a load beyond the simulated bench's 32-bit milligrams),
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import NamedTuple
 
 from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling
@@ -58,8 +59,13 @@ def load_mg(load_g: float) -> int:
 def plan_problems(plan: Plan, steps_per_turn: int) -> list[str]:
     """``"source: what"`` for every segment whose commands cannot be sent (empty: all fit)."""
     problems: list[str] = []
-    loads = [(plan.load_g, "load_g")] + [(s.action.load_g, s.source) for s in plan.segments
-                                         if isinstance(s.action, Prompt)]
+    folder = Path(plan.path).parent if plan.path else None
+
+    def where(source: str) -> str:  # "file.yaml:LINE" -> the path the user gave
+        return str(folder / source) if folder is not None else source
+
+    loads = [(plan.load_g, where(f"{Path(plan.path).name}:1") if plan.path else "load_g")] + [
+        (s.action.load_g, where(s.source)) for s in plan.segments if isinstance(s.action, Prompt)]
     for load_g, where in loads:
         if load_g is not None and load_mg(load_g) > MAX_LOAD_MG:
             problems.append(f"{where}: load_g {load_g:g} g is more than the {MAX_LOAD_MG / 1000:g} g "
@@ -73,7 +79,7 @@ def plan_problems(plan: Plan, steps_per_turn: int) -> list[str]:
                 key = (seg.source, seg.kind)
                 if key not in seen:
                     seen.add(key)
-                    problems.append(f"{seg.source}: {seg.kind} {seg.params()} does not fit the device "
+                    problems.append(f"{where(seg.source)}: {seg.kind} {seg.params()} does not fit the device "
                                     f"command {type(command).__name__} {tuple(command)} at {steps_per_turn} "
                                     "steps/turn")
     return problems

@@ -101,11 +101,14 @@ def _read_header(path: Path) -> tuple[list[str], int, str, list[tuple[int, list[
     delim = "," if "," in lines[i] else (";" if ";" in lines[i] else ("\t" if "\t" in lines[i] else ","))
     rows = []
     reader = csv.reader(lines[i:], delimiter=delim)
-    header = [c.strip() for c in next(reader)]
-    for n, cells in enumerate(reader, start=i + 2):
-        if not cells or (len(cells) == 1 and not cells[0].strip()) or cells[0].lstrip().startswith("#"):
-            continue
-        rows.append((n, cells))
+    try:
+        header = [c.strip() for c in next(reader)]
+        for cells in reader:
+            if not cells or (len(cells) == 1 and not cells[0].strip()) or cells[0].lstrip().startswith("#"):
+                continue
+            rows.append((i + reader.line_num, cells))
+    except csv.Error as exc:  # e.g. an unclosed quote swallowing the rest of the file
+        raise CsvImportError(f"{path}:{i + reader.line_num}: not valid CSV ({exc})") from None
     return header, i + 1, delim, rows
 
 
