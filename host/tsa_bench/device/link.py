@@ -10,9 +10,10 @@ in sequence order, each at most once:
 * a frame from ahead of a gap is held until the gap fills (a swapped pair is restored),
   until ``depth`` frames are held or the oldest has waited ``hold_s``; then the gap is
   given up as lost and the held frames are released;
-* a frame whose number was already released is a duplicate and is dropped; one from a
-  gap given up before is late: it is returned apart (:attr:`late`) for the caller to
-  judge (an ACK is still useful; a sample is not, it would be out of order);
+* a frame whose number was released recently is a duplicate and is dropped; one from
+  behind that was not (a gap given up before, or older than the first frame of the
+  session) is late: it is returned apart (:attr:`late`) for the caller to judge (an
+  ACK is still useful; a sample is not, it would be out of order);
 * a BOOT frame (the device restarted and counts from 0 again) or a number far outside
   the window restarts the count.
 
@@ -32,7 +33,7 @@ from tsa_bench.protocol import Frame, msg
 SEQ_MOD = 1 << 16
 #: Numbers ahead of the expected one that are held as a reordering; farther ahead is a restart.
 WINDOW = 1024
-#: Numbers remembered as given up (for telling late frames from duplicates).
+#: Numbers remembered as released (for telling duplicates from late frames).
 REMEMBER = 4096
 
 
@@ -65,8 +66,8 @@ class FrameSequencer:
         """Forget the count (a new session): the next frame sets it."""
         self._expected: int | None = None
         self._held: dict[int, tuple[Frame, float]] = {}
-        self._given_up: set[int] = set()
-        self._given_up_order: deque[int] = deque()
+        self._released: set[int] = set()
+        self._released_order: deque[int] = deque()
 
     def _ahead(self, seq: int) -> int:
         assert self._expected is not None
@@ -83,17 +84,18 @@ class FrameSequencer:
         out.append(frame)
         self.stats.released += 1
         self._expected = (frame.seq + 1) % SEQ_MOD
+        self._remember(frame.seq)
+
+    def _remember(self, seq: int) -> None:
+        self._released.add(seq)
+        self._released_order.append(seq)
+        if len(self._released_order) > REMEMBER:
+            self._released.discard(self._released_order.popleft())
 
     def _give_up_gap(self, out: list[Frame]) -> None:
         """Declare lost the numbers before the lowest held frame, release from there."""
         lowest = min(self._held, key=self._ahead)
         gap = self._ahead(lowest)
-        for k in range(gap):
-            seq = (self._expected + k) % SEQ_MOD
-            self._given_up.add(seq)
-            self._given_up_order.append(seq)
-        while len(self._given_up_order) > REMEMBER:
-            self._given_up.discard(self._given_up_order.popleft())
         self.stats.lost += gap
         self._expected = lowest
         self._release_run(out, restored=False)
@@ -103,8 +105,8 @@ class FrameSequencer:
             out.append(self._held[seq][0])
             self.stats.released += 1
         self._held.clear()
-        self._given_up.clear()
-        self._given_up_order.clear()
+        self._released.clear()
+        self._released_order.clear()
         self.stats.restarts += 1
         self._emit(frame, out)
 
@@ -128,13 +130,13 @@ class FrameSequencer:
                     self.stats.duplicates += 1
                 else:
                     self._held[seq] = (frame, self.clock())
-            elif ahead >= SEQ_MOD - SEQ_MOD // 2:  # behind: already released, or given up
-                if seq in self._given_up:
-                    self._given_up.discard(seq)
+            elif ahead >= SEQ_MOD - SEQ_MOD // 2:  # behind: released already, or late
+                if seq in self._released:
+                    self.stats.duplicates += 1
+                else:
+                    self._remember(seq)  # a second copy of it is a duplicate
                     self.stats.late += 1
                     self.late.append(frame)
-                else:
-                    self.stats.duplicates += 1
             else:
                 self._restart(frame, out)
             while len(self._held) >= self.depth:

@@ -66,9 +66,9 @@ def plan_problems(plan: Plan, steps_per_turn: int) -> list[str]:
 
     loads = [(plan.load_g, where(f"{Path(plan.path).name}:1") if plan.path else "load_g")] + [
         (s.action.load_g, where(s.source)) for s in plan.segments if isinstance(s.action, Prompt)]
-    for load_g, where in loads:
+    for load_g, at in loads:
         if load_g is not None and load_mg(load_g) > MAX_LOAD_MG:
-            problems.append(f"{where}: load_g {load_g:g} g is more than the {MAX_LOAD_MG / 1000:g} g "
+            problems.append(f"{at}: load_g {load_g:g} g is more than the {MAX_LOAD_MG / 1000:g} g "
                             "a bench command can carry")
     seen: set[tuple[str, str]] = set()
     for seg in plan.segments:
