@@ -232,6 +232,9 @@ def test_only_device_paths_and_sim_urls_are_ports_unless_allowed(tmp_path, port)
 
 def test_an_allowed_url_is_then_used(tmp_path):
     """loop:// echoes our own frames: allowed with --allow-url, it is no device (exit 1)."""
-    res = invoke("run", str(PROTOCOL), "--port", "loop://", "--allow-url", "--output", str(tmp_path / "r.h5"),
-                 allowed=(1,))
+    quick = tmp_path / "quick.yaml"
+    quick.write_text(BENCH.read_text().replace("boot_timeout_s: 3.0", "boot_timeout_s: 0.1")
+                     .replace("ack_timeout_s: 0.25", "ack_timeout_s: 0.05"))
+    res = invoke("run", str(PROTOCOL), "--bench", str(quick), "--port", "loop://", "--allow-url",
+                 "--output", str(tmp_path / "r.h5"), allowed=(1,))
     assert "no answer from a tsa-bench device" in res.output

@@ -4,7 +4,9 @@
 with the real consumers (RunWriter, LiveSidecar). Each stdin line ``block`` appends
 ten samples (t advancing 1 s per sample) and flushes them to the sidecar, then prints
 ``wrote <last t>``; ``end`` closes the run as a success and exits. The test decides
-when the run moves on, so what a watcher sees does not depend on machine load.
+when the run moves on, so what a watcher sees does not depend on machine load. With
+``--sidecar-later`` the run file is created first and the sidecar only after a stdin
+line ``sidecar`` (the moment between the two, stretched).
 """
 
 from __future__ import annotations
@@ -20,13 +22,17 @@ from tsa_bench.store.live import LiveSidecar
 BLOCK = 10
 
 
-def main(path: str) -> None:
+def main(path: str, sidecar_later: bool = False) -> None:
     consumers = [RunWriter(path), LiveSidecar(path)]
     start = RunStart(plan_name="stepped", protocol_text="", protocol_path=None, bench_text="", bench_path=None,
                      backend="sim", port="stepped", firmware="0.0.0", identity={}, n_segments=1,
                      estimated_duration_s=100.0)
-    for c in consumers:
-        c.on_start(start)
+    consumers[0].on_start(start)
+    if sidecar_later:
+        print("run file open", flush=True)
+        while sys.stdin.readline().strip() != "sidecar":
+            pass
+    consumers[1].on_start(start)
     n = 0
     for line in sys.stdin:
         if line.strip() == "block":
@@ -47,4 +53,4 @@ def main(path: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1], "--sidecar-later" in sys.argv[2:])

@@ -117,6 +117,31 @@ def test_watch_follows_a_run_while_it_records(tmp_path):
     assert not sidecar_path(out).exists()
 
 
+def test_watch_waits_for_the_sidecar_of_a_run_that_is_starting(tmp_path):
+    """A run creates its file a moment before its sidecar; a watcher that looks in
+    between (the file exists, locked for writing, no sidecar yet) waits for the sidecar
+    instead of calling the file unreadable."""
+    out = tmp_path / "starting.h5"
+    writer = subprocess.Popen([sys.executable, "-m", "tests.report.stepped_writer", str(out), "--sidecar-later"],
+                              cwd=ROOT, env=ENV, text=True, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE)
+    w = None
+    try:
+        _readline(writer, "run file open")
+        w = _cli("watch", str(out), "--plain", "--interval", "0.05", "--wait", "60")
+        time.sleep(1.0)  # the watcher looks ~10 times meanwhile (if it is slower, the test is only weaker)
+        assert w.poll() is None, w.communicate()
+        writer.stdin.write("sidecar\nblock\nend\n")
+        writer.stdin.flush()
+        stdout, stderr = w.communicate(timeout=60)
+        assert writer.wait(30) == 0
+    finally:
+        for p in (writer, w):
+            if p is not None and p.poll() is None:
+                p.kill()
+    assert w.returncode == 0 and stdout.strip().splitlines()[-1].startswith("run ended: success"), stdout + stderr
+
+
 def test_watch_and_run_together_end_with_the_run(tmp_path):
     """`run` and `watch` started together: whenever the watcher gets to look (while the
     run records or only after it ended), it ends with the run's outcome."""

@@ -90,7 +90,8 @@ class ProgressDisplay:
         if e.kind in ("prompt", "sample_gap", "fault", "queue_underrun", "stop_sent"):
             self.notes += 1
             if self._live is not None:
-                self._live.console.print(f"[yellow]{hms(e.t)} {e.kind}: {e.detail}")
+                # a Text, not markup: a prompt or a reason may hold "[" and "]"
+                self._live.console.print(Text(f"{hms(e.t)} {e.kind}: {e.detail}", style="yellow"))
 
     def on_stop(self, stop: RunStop) -> None:
         if self._live is not None:

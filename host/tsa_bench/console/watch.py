@@ -131,6 +131,18 @@ def _summary_from_file(run_path: Path, echo: Callable[[str], None]) -> int:
     return 0 if run.exit_status == "success" else 1
 
 
+def _being_written(run_path: Path) -> bool:
+    """The run file is open for writing by another process (HDF5's file lock says so):
+    a run starting up, whose sidecar appears a moment after the run file."""
+    from tsa_bench.store import RunFileError, read_run
+
+    try:
+        read_run(run_path)
+    except RunFileError as exc:
+        return "lock" in str(exc).lower()
+    return False
+
+
 def _open_tail(run_path: Path, wait_s: float) -> LiveTail | None:
     deadline = time.monotonic() + wait_s
     side = sidecar_path(run_path)
@@ -138,7 +150,7 @@ def _open_tail(run_path: Path, wait_s: float) -> LiveTail | None:
         try:
             return LiveTail(side)
         except FileNotFoundError:
-            if run_path.exists() or time.monotonic() >= deadline:
+            if time.monotonic() >= deadline or (run_path.exists() and not _being_written(run_path)):
                 return None
         time.sleep(0.1)
 
