@@ -214,11 +214,15 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
             if key not in allowed:
                 raise f.fail((section, key), f"unknown key (allowed: {', '.join(allowed)})")
     mm_per_count = f.number(pos, ("position_sensor", "mm_per_count"), unit="mm/count")
-    if mm_per_count == 0:
-        raise f.fail(("position_sensor", "mm_per_count"), "must not be 0")
-    current = f.number(res, ("resistance_sensor", "sense_current_A"), gt=0, unit="A")
-    vref = f.number(res, ("resistance_sensor", "vref_V"), gt=0, unit="V")
+    if not 1e-9 <= abs(mm_per_count) <= 1e3:  # 1 nm .. 1 m per count
+        raise f.fail(("position_sensor", "mm_per_count"), f"must be 1e-9..1e3 mm/count in magnitude, "
+                                                          f"got {mm_per_count:g}")
+    current = f.number(res, ("resistance_sensor", "sense_current_A"), gt=0, le=100.0, unit="A")
+    vref = f.number(res, ("resistance_sensor", "vref_V"), gt=0, le=1000.0, unit="V")
     bits = f.integer(res, ("resistance_sensor", "adc_bits"), 20, lo=2, hi=32)
+    if not vref / 2 ** (bits - 1) / current >= 1e-15:  # the calibration must be a usable number
+        raise f.fail(("resistance_sensor",), f"vref_V / 2^(adc_bits-1) / sense_current_A = "
+                                             f"{vref / 2 ** (bits - 1) / current:g} ohm/count is too small")
     bench = BenchConfig(
         name=f.text(data, ("name",)),
         backend=backend,
@@ -229,7 +233,8 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
         watchdog_s=f.number(data, ("watchdog_s",), 2.0, ge=0.001, le=U16_MAX / 1000, unit="s"),
         queue_slots=f.integer(data, ("queue_slots",), 16, lo=1, hi=U8_MAX),
         position=PositionCalibration(mm_per_count=mm_per_count,
-                                     offset_mm=f.number(pos, ("position_sensor", "offset_mm"), unit="mm")),
+                                     offset_mm=f.number(pos, ("position_sensor", "offset_mm"), ge=-1e9, le=1e9,
+                                                        unit="mm")),
         resistance=ResistanceCalibration(ohm_per_count=vref / 2 ** (bits - 1) / current, sense_current_A=current,
                                          adc_bits=bits),
         ack_timeout_s=f.number(data, ("ack_timeout_s",), 0.25, ge=0.001, le=10.0, unit="s"),

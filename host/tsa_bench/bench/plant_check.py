@@ -44,7 +44,11 @@ def check_plant(bench: BenchConfig, doc: YamlDocument) -> None:
     hi = lim.max_twist_turns if lim.max_twist_turns is not None else 100.0
     lo = lim.min_twist_turns if lim.min_twist_turns is not None else -hi
     volts = lim.max_heater_voltage_V if lim.max_heater_voltage_V is not None else 12.0
-    sensors = SimSensors(bench.position, bench.resistance)
+    try:
+        sensors = SimSensors(bench.position, bench.resistance)
+    except ArithmeticError as exc:
+        raise BenchConfigError(f"{doc.where('position_sensor')}: the sensor calibrations cannot be inverted for "
+                               f"the simulation ({exc})") from None
     t = 0.0
     for turns, heater_V, moving in ((0.0, 0.0, False), (hi, 0.0, True), (hi, 0.0, False), (hi, volts, False),
                                     (lo, 0.0, True), (lo, volts, False), (0.0, 0.0, False)):
