@@ -41,8 +41,9 @@ from tsa_bench.device import BenchClient, DeviceError  # noqa: E402
 from tsa_bench.runner import AutoOperator, Runner  # noqa: E402
 from tsa_bench.store import RunWriter  # noqa: E402
 
-CLEAN = {"watchdog": "device watchdog", "no ACK": "no ACK within the watchdog budget",
-         "lost the connection": "line cut", "silent": "device silent", "no answer": "no device (before the run)"}
+# first match wins: a "no ACK" message also names the watchdog (the budget it retried for)
+CLEAN = {"no ACK": "no ACK within the watchdog budget", "lost the connection": "line cut",
+         "silent": "device silent", "no answer": "no device (before the run)", "watchdog": "device watchdog"}
 
 
 def conditions(rng: random.Random, wall: bool) -> dict[str, LinkFaults]:
