@@ -226,7 +226,9 @@ def heater_sense_interlock(ex: Exchange) -> dict:
     i_off = max(i for i, s in enumerate(got) if s.heater_mV > 0) + 1
     back = next(i for i in range(i_off, len(got)) if not got[i].adc_flags & NOT_MEASURED) - i_off
     i_on = min(i for i, s in enumerate(got) if s.heater_mV > 0)
-    before = got[8:i_on]                  # past the settling after sampling started
+    # past the settling after sampling started; the last one before heating may have
+    # had its conversion aborted when the heater came on (resistance_not_measured)
+    before = got[8:i_on - 1]
     return {"log": log, "continuous": _counters_continuous(got),
             "heated_not_measured": bool(heated) and all(s.adc_flags & NOT_MEASURED for s in heated),
             "measured_before_heating": bool(before) and all(not s.adc_flags & NOT_MEASURED for s in before),

@@ -61,7 +61,7 @@ struct harness {
     uint64_t app_starts;           // the application's reset vector reached (incl. restarts)
     int n_reset_log;
     double reset_t_s[MAX_RESETS];
-    char reset_cause[MAX_RESETS][16];
+    char reset_cause[MAX_RESETS][24];
     // heater: stretches of heating with their mean duty
     uint64_t heater_periods;
     double heater_period_start_s[HEATER_MAX_PERIODS], heater_period_end_s[HEATER_MAX_PERIODS];

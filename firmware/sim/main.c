@@ -5,6 +5,7 @@
 //              [--realtime FACTOR] [--max-seconds S] [--cs5513-conversion-us 19125]
 //              [--bootloader ELF|none] [--enable-pull down|up] [--backdrive-steps-per-s N]
 //              [--twi-fault SPEC]... [--ads-rate-error X] [--trace FILE] [--hang-at S]
+//              [--hang-masked 0|1]
 //
 // Contract. Opens the pty (uart_bridge), connects to the plant, then holds the AVR in
 // reset until the plant sends 'G' (the host has the port open: like the DTR reset of
@@ -14,9 +15,12 @@
 // application's pins floating, MCUSR handled as that bootloader does. SIGUSR1 is the
 // DTR pulse of a host opening the port again (external reset, EXTRF); a watchdog reset
 // comes from simavr's WDT. After any reset the rig's parts carry on (they are not reset)
-// and re-arm their timers. --hang-at S makes the CPU hang at S s of device time (a
-// `rjmp .` loop, interrupts still enabled), as a firmware bug would, to exercise the
-// watchdog. Pacing: device time never runs more than --lead-ms past the device time of
+// and re-arm their timers. --hang-at S makes the main loop hang at S s of device time
+// (a `rjmp .` loop entered with interrupts enabled, outside any ISR), as a firmware bug
+// would, to exercise the watchdog; with --hang-masked 1 the loop runs with interrupts
+// masked (a hang inside an ISR or an atomic block). The watchdog in interrupt-and-reset
+// mode resets the chip when its interrupt was not served before the next time-out, as
+// the datasheet says (simavr 1.6 would raise the interrupt forever). Pacing: device time never runs more than --lead-ms past the device time of
 // the host's last byte (or of the last reset), unless the host has been silent for
 // --host-gone-ms of wall time (then it runs free, so the firmware's watchdog can trip);
 // with --realtime it also never runs ahead of wall time x FACTOR. Output the host has
@@ -31,7 +35,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <avr_watchdog.h>
 #include <sim_avr.h>
+#include <sim_core.h>
 #include <sim_elf.h>
 
 #include "harness.h"
@@ -103,9 +109,28 @@ static void log_reset(const char *cause) {
 
 // Everything after a reset: the rig's wiring is back on the floating pins, the parts
 // re-arm their timers, the host's pacing allows for the bootloader.
+static avr_watchdog_t *g_wd;        // simavr's WDT (the struct is in its public header)
+static uint64_t g_wd_raised_cycle;  // when its interrupt became pending; 0 = not pending
+
+static void on_wd_pending(struct avr_irq_t *irq, uint32_t value, void *param) {
+    (void)irq;
+    (void)param;
+    if (!value)
+        g_wd_raised_cycle = 0;
+    else if (!g_wd_raised_cycle)
+        g_wd_raised_cycle = H.avr->cycle ? H.avr->cycle : 1;
+}
+
+static void find_watchdog(void) {
+    for (avr_io_t *io = H.avr->io_port; io; io = io->next)
+        if (io->kind && !strcmp(io->kind, "watchdog")) g_wd = (avr_watchdog_t *)io;
+    if (g_wd) avr_irq_register_notify(g_wd->watchdog.irq + AVR_INT_IRQ_PENDING, on_wd_pending, NULL);
+}
+
 static void after_reset(const char *cause) {
     log_reset(cause);
     g_tccr3b = 0;
+    g_wd_raised_cycle = 0;
     wiring_reapply(&H);
     uart_bridge_reset(&H);
     ads1115_reset(&H);
@@ -137,6 +162,7 @@ int main(int argc, char **argv) {
     const char *elf = NULL, *pty = NULL, *plant_path = NULL, *summary_path = NULL, *boot = NULL, *trace_path = NULL;
     double lead_ms = 1000, gone_ms = 4000, realtime = 0, max_s = 0, cs_conv_us = 19125, ads_rate_error = 0;
     double backdrive = 16000, hang_at = -1;
+    int hang_masked = 0;
     int enable_pull_up = 0;
     char err[256];
     for (int i = 1; i < argc; ++i) {
@@ -162,6 +188,7 @@ int main(int argc, char **argv) {
         } else if (!strcmp(a, "--ads-rate-error")) ads_rate_error = atof(v);
         else if (!strcmp(a, "--trace")) trace_path = v;
         else if (!strcmp(a, "--hang-at")) hang_at = atof(v);
+        else if (!strcmp(a, "--hang-masked")) hang_masked = atoi(v) != 0;
         else usage("unknown option");
     }
     if (!elf || !pty || !plant_path) usage("--elf, --pty and --plant are required");
@@ -225,6 +252,7 @@ int main(int argc, char **argv) {
         strcpy(H.error, reason);
         g_stop = -1;
     }
+    find_watchdog();
     // Power-on: SRAM content is whatever the cells settled to.
     srand(0x7A5B);
     for (uint32_t a = 0x200; a <= H.avr->ramend; ++a) H.avr->data[a] = (uint8_t)(rand() >> 7);
@@ -274,11 +302,24 @@ int main(int argc, char **argv) {
             if (H.avr->pc == 0 && pc_before != 0) H.app_starts++;
         }
         if (H.avr->cycle >= hang_cycle && hang_cycle != UINT64_MAX) {
-            H.avr->flash[HANG_PC] = 0xFF;      // rjmp .-2 (0xCFFF): loops on itself
-            H.avr->flash[HANG_PC + 1] = 0xCF;
-            H.avr->pc = HANG_PC;
-            log_reset("hang_injected");
-            hang_cycle = UINT64_MAX;
+            if (!H.avr->sreg[S_I]) {
+                hang_cycle = H.avr->cycle + 1;  // inside an ISR or an atomic block: the main loop hangs, not that
+            } else {
+                H.avr->flash[HANG_PC] = 0xFF;  // rjmp .-2 (0xCFFF): loops on itself
+                H.avr->flash[HANG_PC + 1] = 0xCF;
+                H.avr->pc = HANG_PC;
+                if (hang_masked) avr_sreg_set(H.avr, S_I, 0);
+                log_reset(hang_masked ? "hang_injected_masked" : "hang_injected");
+                hang_cycle = UINT64_MAX;
+            }
+        }
+        // Interrupt-and-reset mode: an interrupt not served by the next time-out resets.
+        if (g_wd && g_wd_raised_cycle && avr_regbit_get(H.avr, g_wd->wde) &&
+            H.avr->cycle - g_wd_raised_cycle >= g_wd->cycle_count) {
+            H.resets++;
+            g_wd->reset_context.avr_run = H.avr->run;  // simavr's own path: WDE and WDRF set, fastest period
+            g_wd->reset_context.wdrf = 1;
+            reset_avr(MCUSR_WDRF, "watchdog");
         }
         if (H.avr->state == cpu_Crashed) {
             crashed = 1;

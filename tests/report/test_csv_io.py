@@ -26,7 +26,7 @@ def test_export_then_import_gives_the_same_samples(protocol_runs, tmp_path):
     original = read_run(src)
     assert segs[0][:4] == ["index", "kind", "t_start [s]", "t_end [s]"] and len(segs) == len(original.segments) + 1
     events = list(csv.reader(open(tmp_path / "twist-heat-4ply.events.csv")))
-    assert events[0] == ["t [s]", "kind", "detail"] and events[1][1] == "prompt"
+    assert events[0] == ["t [s]", "kind", "detail"] and "prompt" in [row[1] for row in events[1:]]
     out = tmp_path / "back.h5"
     res = CliRunner().invoke(main, ["import", str(samples), "--out", str(out), "--meta", "rig=bench B, room 2"])
     assert res.exit_code == 0, res.output

@@ -128,6 +128,29 @@ def test_a_hung_main_loop_is_made_safe_by_the_watchdog_interrupt_without_a_reset
     assert not s["drive"]["sense_on"]
 
 
+def test_a_hang_with_interrupts_masked_ends_in_a_watchdog_system_reset(firmware_dir):
+    """A hang with interrupts masked (inside an ISR or an atomic block) cannot run the
+    watchdog interrupt: the chip resets at the next time-out (the datasheet's
+    interrupt-and-reset mode; simavr 1.6 alone never would). The reset turns the heater
+    off and the firmware boots again. The stock bootloader clears MCUSR and jumps
+    straight to the application after a watchdog reset, and the firmware's watchdog ISR
+    never ran: the BOOT can only say external_reset (firmware/README.md)."""
+    with simavr_port(firmware_dir, hang_at_s=8.0, hang_masked=True) as (port, bench):
+        ex = exchange(port)
+        sc.handshake(ex)
+        ex.send(msg.SetSampling(1, 20_000))
+        ex.send(msg.SetHeater(2, 5000))
+        since = len(ex.received)
+        boot = wait_boot(ex, since, heartbeat=True)
+        assert boot.reason == msg.BootReason.EXTERNAL_RESET
+    s = bench.summary
+    hang = [r["t_s"] for r in s["reset_log"] if r["cause"] == "hang_injected_masked"]
+    resets = [r["t_s"] for r in s["reset_log"] if r["cause"] == "watchdog"]
+    assert len(hang) == 1 and len(resets) == 1 and s["resets"] == 1
+    assert 0.2 < resets[0] - hang[0] < 0.3                         # two periods of ~128 ms
+    assert 0 < s["heater"]["last_off_s"] - hang[0] < 0.3            # off by the reset at the latest
+
+
 def test_the_heater_applies_the_voltage_it_reports(firmware_dir):
     """Each request is applied within 2 % from 1 V up, and SAMPLE reports the voltage
     applied: the harness integrates the gate's duty on Timer2's real (OCR2A + 1)/256

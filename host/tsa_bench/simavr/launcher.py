@@ -19,7 +19,8 @@ The rig's settings (the ``simavr:`` section of a bench file, or SimavrSettings):
 ``enable_pull`` down | up (the A4988 /ENABLE resistor: down keeps the motor energized
 through a reset), ``backdrive_steps_per_s`` (how fast the loaded strings turn a released
 motor back), ``ads_rate_error`` (the ADS1115's oscillator error, +-0.1 in its data
-sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``hang_at_s`` and ``trace``.
+sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``hang_at_s`` (with
+``hang_masked``) and ``trace``.
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ class SimavrSettings:
     ads_rate_error: float = 0.0
     twi_faults: tuple[str, ...] = ()
     hang_at_s: float | None = None
+    hang_masked: bool = False             # the injected hang runs with interrupts masked
     trace: bool = False
 
     @property
@@ -181,7 +183,7 @@ class SimavrBench:
             for fault in s.twi_faults:
                 cmd += ["--twi-fault", fault]
             if s.hang_at_s is not None:
-                cmd += ["--hang-at", repr(s.hang_at_s)]
+                cmd += ["--hang-at", repr(s.hang_at_s), "--hang-masked", "1" if s.hang_masked else "0"]
             if s.trace:
                 cmd += ["--trace", str(self._dir / "trace.txt")]
             self._stderr = open(self._dir / "stderr.txt", "w+")
