@@ -146,3 +146,34 @@ def test_messages_arriving_with_the_ack_are_kept_in_order():
     client.connect(boot_timeout_s=0.2)
     client.command(msg.Heartbeat())
     assert client.poll() == [msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0)]
+
+
+def test_status_returns_the_queue_status_answering_a_heartbeat_and_keeps_it_for_poll():
+    qs = msg.QueueStatus(7, 16, 0, 0, 0, int(msg.DeviceState.POSITION_UNKNOWN), 1234, 2, 3, 4, 5)
+    port = ScriptedPort({msg.Hello: lambda f: [identity()],
+                         msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16), qs]})
+    client = BenchClient(port, ack_timeout_s=0.05)
+    client.connect(boot_timeout_s=0.2)
+    assert client.status() == qs
+    assert client.poll() == [qs]
+
+
+def test_status_raises_when_no_queue_status_follows_the_ack():
+    port = ScriptedPort({msg.Hello: lambda f: [identity(watchdog_ms=50)],
+                         msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16)]})
+    client = BenchClient(port, ack_timeout_s=0.01)
+    client.connect(boot_timeout_s=0.2)
+    with pytest.raises(NoAcknowledgement, match="QUEUE_STATUS"):
+        client.status()
+
+
+def test_set_position_sends_the_steps_and_raises_on_refusal():
+    port = ScriptedPort({msg.Hello: lambda f: [identity()],
+                         msg.SetPosition: lambda f: [msg.Ack(f.seq, 0x06, int(msg.Status.OK if f.message.position_steps == 0
+                                                                             else msg.Status.BAD_STATE), 16)]})
+    client = BenchClient(port, ack_timeout_s=0.05)
+    client.connect(boot_timeout_s=0.2)
+    assert client.set_position(0).status == msg.Status.OK
+    assert [f.message for f in port.received if isinstance(f.message, msg.SetPosition)] == [msg.SetPosition(0)]
+    with pytest.raises(CommandRefused, match="bad_state"):
+        client.set_position(5)

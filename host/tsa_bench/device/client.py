@@ -236,7 +236,7 @@ class BenchClient:
         for m in reversed(self._inbox):
             if isinstance(m, msg.QueueStatus):
                 return m
-        found = self._await(lambda m: isinstance(m, msg.QueueStatus), self.ack_timeout_s * (self.retries + 1))
+        found = self._await(lambda m: isinstance(m, msg.QueueStatus), self.retry_budget_s)
         if found is None:
             raise NoAcknowledgement(f"no QUEUE_STATUS after HEARTBEAT on {self._port_name()}")
         self._inbox.append(found)
