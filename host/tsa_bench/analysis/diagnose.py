@@ -1,228 +1,465 @@
-"""The diagnose engine (issue 5): calibrate, replay, test, rank, name, extend, measure.
+"""The diagnose engine: calibrate, replay, test, screen, refit, name, check, decide.
 
-Units: length mm, resistance ohm, time s; scores are fractions of residual variance.
+Units: length mm, resistance ohm, time s; improvements in noise variances per sample.
 
-Contract: see :func:`diagnose`. Decision rule for naming a cause (false-alarm control):
-a candidate effect, refitted together with the model's own parameters on the training
-part, is named when (a) its held-out RMSE falls by at least :data:`GAIN_MIN` on some
-output, (b) no output's held-out RMSE rises by more than :data:`GAIN_MIN`, (c) the
-training delta-BIC is below :data:`DBIC_MAX`, and (d) the gain is the effect's own:
-switching the effect off again in the refitted model loses at least half of it (so a
-better optimum of the old parameters is never credited to the new effect). On clean data
-the extended model nests the judged one (each candidate's amplitude can go to zero),
-so it can only fit noise: k extra parameters on n training points lower the held-out
-RMSE by O(k/n) ~ 0.1 %, far below 15 %; the held-out gate, not the training BIC (which
-over-counts evidence on autocorrelated residuals), carries the false-alarm control.
+Contract: :func:`diagnose` judges a plant config against runs and always ends in a
+verdict (:mod:`tsa_bench.analysis.verdict`). Steps:
+
+1. inputs: a run that lacks what the model needs ends at once in ``model_mismatch``;
+2. holdout (:mod:`~tsa_bench.analysis.holdout`) and the noise model from the data alone
+   (:mod:`~tsa_bench.analysis.noise`);
+3. staged calibration: geometry from the holds from several starts, the resistance line
+   by least squares, then every parameter on a training subsample (calibrate.py);
+4. residual structure of the judged model (structure.py); if no output is structured
+   above the noise the verdict is ``explained`` and nothing is screened;
+5. up to ``max_causes`` iterations: screen every candidate form the data can test
+   (screening.py), refit every form of the leading effect and the best form of the next
+   ones together with the model's own parameters, and **name** the one with the largest
+   held-out improvement among those that pass the gate: the 95 % block-bootstrap
+   interval of the pooled held-out improvement over the current model is above 0 and its
+   estimate is at least the relevance floor (a quarter of a noise variance per sample: a
+   structure of half the noise RMS); switching the form off again in the refitted model
+   worsens the training fit by at least the floor (the gain is the form's, not the
+   re-calibration's) and, where the form acts on the held-out data, worsens it
+   significantly; no output is worse in :data:`HARM_P` of the resamples; none of the
+   form's own parameters ended at a soft bound. A refit whose parameters fit the
+   training data better even with the form off shows the current calibration was a
+   poorer optimum: the model is re-calibrated from there and the iteration repeated;
+6. the final model: each named cause's own part (final model against the final model
+   re-calibrated without it; with one cause, the judged model) orders the causes,
+   dominant first, and gives its confidence (share of bootstrap replicates above the
+   floor; ``form_confidence``: share in which its form beats the family's other forms);
+   the residual is tested again and the verdict decided (verdict.py).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tsa_bench.analysis.calibrate import OUTPUTS, Fit, Problem, calibrate
-from tsa_bench.analysis.candidates import generic_signals, pooled, problem_masks, screen_effect, sim_outputs
-from tsa_bench.analysis.inputs import RunInputs, run_inputs, split
-from tsa_bench.analysis.modelspec import (CANDIDATE_SPECS, baseline_specs, candidate_effects, enabled_effects,
-                                          get_value, switch)
-from tsa_bench.analysis.replay import noise_level, replay, subsample
-from tsa_bench.analysis.residual_tests import test_residuals
-from tsa_bench.analysis.result import Candidate, DiagnoseResult, Gain
+from tsa_bench.analysis.calibrate import Fit, Problem, calibrate
+from tsa_bench.analysis.families import FAMILIES, FAMILY_OF, FORM_SPECS, NEEDS, OUTPUT_OF, RunScale
+from tsa_bench.analysis.holdout import Holdout, split
+from tsa_bench.analysis.inputs import OUTPUTS, RunInputs, missing_inputs, run_inputs
+from tsa_bench.analysis.modelspec import baseline_specs, enabled_effects, get_value, switch
+from tsa_bench.analysis.noise import RELEVANT, Noise, noise_model
+from tsa_bench.analysis.provenance import provenance
+from tsa_bench.analysis.quasistatic import hold_points, staged_start
+from tsa_bench.analysis.replay import subsample
+from tsa_bench.analysis.result import Candidate, DiagnoseResult, Gain, NamedCause
+from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
+from tsa_bench.analysis.screening import screen, stacked
+from tsa_bench.analysis.signals import signal_bases
+from tsa_bench.analysis.structure import follows, jumps, ljung_box, structure_test
+from tsa_bench.analysis import verdict as vd
 
-GAIN_MIN = 0.15        # relative held-out RMSE gain needed on an output
-DBIC_MAX = -10.0       # training delta-BIC needed ("very strong" on the Kass-Raftery scale)
-SCREEN_DBIC = -10.0    # screening: only effects whose signature explains this much are refitted
-REFIT_TOP = 3          # refit at most this many effects per iteration
-N_CAL = 1500           # training subsample size (per all runs)
-N_EVAL = 2500          # evaluation subsample size per run (gating)
+#: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
+FLOOR = RELEVANT ** 2
+N_CAL = 3000          # calibration subsample (all runs)
+REFIT_MAX = 4         # forms refitted per iteration
+REFIT_NFEV = 30       # function evaluations per refit
+SCREEN_MIN = 0.01     # a form's signature must explain at least this share of the residual
+N_BOOT = 1000
+#: a candidate that makes an output worse (beyond the floor) in this share of the resamples is rejected
+HARM_P = 0.8
+UNITS = {"length": "mm", "resistance": "ohm"}
+Progress = Callable[[str], None]
 
 
-def _heldout_rmse(cfg: Mapping[str, Any], runs: list[RunInputs], idxs: list[np.ndarray]) -> dict[str, float]:
-    sq = {o: [] for o in OUTPUTS}
-    for r, idx in zip(runs, idxs):
-        if not r.heldout[idx].any():
+def _structure(res: np.ndarray, noise: Noise, rate: float, bases: dict[str, np.ndarray], moving: np.ndarray) -> dict:
+    t = structure_test(res, noise, rate)
+    t["ljung_box_p"] = ljung_box(res)[1]
+    t["follows"] = follows(res, bases, t["structured_rms"] or 0.0) if t.get("structured") else []
+    t["jumps"] = jumps(res, noise, moving)
+    return t
+
+
+class _Context:
+    """Everything fixed once the inputs, holdout and noise are known."""
+
+    def __init__(self, inputs: list[RunInputs], outputs: tuple[str, ...], noise: dict[str, Noise], hold: Holdout,
+                 seed: int) -> None:
+        self.inputs, self.outputs, self.noise, self.hold, self.seed = inputs, outputs, noise, hold, seed
+        self.sigma = {o: noise[o].rms for o in outputs}
+        n_total = sum(len(r) for r in inputs)
+        idx = [subsample(r, len(r), max(300, N_CAL * len(r) // max(1, n_total))) for r in inputs]
+        self.problem = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
+        self.units = all_units(inputs)
+        self.rate = float(np.median([r.rate_hz for r in inputs]))
+        self.moving = np.concatenate([r.moving for r in inputs])
+        self.kinds = {k for k, v in hold.kinds.items() if v["train"] + v["heldout"] > 0}
+
+    def scores(self, cfg: Mapping[str, Any]) -> Scores:
+        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs)
+
+    def compare(self, a: Scores, b: Scores) -> Comparison:
+        return compare(a, b, FLOOR, N_BOOT, self.seed)
+
+    def residual_tests(self, sims: list[dict], r0: float) -> dict:
+        bases_runs = [signal_bases(r, r0) for r in self.inputs]
+        bases = {k: np.concatenate([b[k] for b in bases_runs]) for k in bases_runs[0]}
+        out = {}
+        for o in self.outputs:
+            res = np.concatenate([np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)])
+            out[o] = _structure(res, self.noise[o], self.rate, bases, self.moving)
+        return out
+
+
+def _eligible(ctx: _Context, cfg: Mapping[str, Any], named_families: list[str]) -> list[str]:
+    on = set(enabled_effects(cfg))
+    out = []
+    for fam, forms in FAMILIES.items():
+        if fam in named_families or any(f in on for f in forms):
             continue
-        length, res = replay(cfg, r, idx)
-        h = r.heldout[idx]
-        for o, sim in (("length", length), ("resistance", res)):
-            d = (sim - getattr(r, o)[idx])[h]
-            sq[o].append(d[np.isfinite(d)])
-    out = {}
-    for o in OUTPUTS:
-        d = np.concatenate(sq[o]) if sq[o] else np.zeros(0)
-        out[o] = float(np.sqrt(np.mean(d ** 2))) if len(d) else float("nan")
+        if not any(k in ctx.kinds for k in NEEDS.get(fam, ())):
+            continue
+        acts = OUTPUT_OF[fam]
+        if acts not in ctx.outputs and not (acts == "length" and "resistance_length" in on):
+            continue
+        out += list(forms)
     return out
 
 
-def _rel(before: float, after: float) -> float:
-    return (before - after) / before if before > 0 and np.isfinite(before) and np.isfinite(after) else 0.0
+def _run_scale(ctx: _Context, cfg: Mapping[str, Any]) -> RunScale:
+    from tsa_bench.analysis.quasistatic import static_length
+    from tsa_bench.sim.kinematics import NEWTON_PER_GRAM
+    tw = np.concatenate([r.turns for r in ctx.inputs])
+    ld = np.concatenate([r.load_g for r in ctx.inputs])
+    sel = np.linspace(0, len(tw) - 1, min(len(tw), 2000)).astype(int)
+    l0, r0 = get_value(cfg, "geometry.untwisted_length_mm"), get_value(cfg, "geometry.radius_mm")
+    k = get_value(cfg, "string_compliance.stiffness_N")
+    on = set(enabled_effects(cfg))
+    x = static_length(l0, r0, k, tw[sel], ld[sel], "string_compliance" in on, "radius_growth" in on)
+    r2 = r0 * r0 * (l0 / x if "radius_growth" in on else 1.0)
+    torque = ld[sel] * NEWTON_PER_GRAM * 2 * np.pi * np.abs(tw[sel]) * r2 / x * 1e-3
+    speed = [np.max(np.abs(np.diff(r.turns)) / np.maximum(np.diff(r.t), 1e-9), initial=0.0) for r in ctx.inputs]
+    res_level = get_value(cfg, "geometry.resistance_ohm")
+    return RunScale(float(np.max(np.abs(tw))), float(np.max(torque, initial=0.0)), float(max(speed)),
+                    float(sum(r.duration_s for r in ctx.inputs)), res_level,
+                    ctx.noise["resistance"].rms if "resistance" in ctx.outputs else 1e-3)
 
 
-def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *,
-             max_causes: int = 3, seed: int = 0) -> DiagnoseResult:
-    """Judge ``model_plant_cfg`` against ``runs`` (RunData); see the module docstring."""
-    t_start = time.perf_counter()
-    notes: list[str] = []
-    rng = np.random.default_rng(seed)
-    del rng  # deterministic procedure; seed kept for API stability
-    init_load = float(model_plant_cfg.get("initial_load_g", 0.0))
-    inputs = [run_inputs(r, init_load) for r in runs]
-    if not inputs or not any(len(r) for r in inputs):
-        raise ValueError("diagnose: no samples")
-    notes.append(split(inputs, holdout))
-    n_train_total = sum(r.n_train for r in inputs)
-    if n_train_total < 20:
-        raise ValueError("diagnose: too few training samples after the holdout split")
-    # noise levels (training part, motor still)
-    sigma = {}
-    for o in OUTPUTS:
-        vals = [noise_level(getattr(r, o)[: r.n_train], ~r.moving[: r.n_train]) for r in inputs if r.n_train > 20]
-        vals = [v for v in vals if np.isfinite(v) and v > 0]
-        sigma[o] = float(np.median(vals)) if vals else 1.0
-    sigma = {o: max(s, 1e-9) for o, s in sigma.items()}
-    notes.append("noise levels: " + ", ".join(f"{o} {s:.3g}" for o, s in sigma.items()))
-    train_idx = [subsample(r, r.n_train, max(200, N_CAL * r.n_train // max(1, n_train_total))) for r in inputs]
-    eval_idx = [subsample(r, len(r), N_EVAL) for r in inputs]
-    problem = Problem(inputs, train_idx, sigma)
+def _gate(c: Comparison, own_train: float, own: Comparison | None, form_bounds: list[dict],
+          outputs: tuple[str, ...]) -> tuple[bool, str]:
+    """The naming gate (module docstring, step 5)."""
+    if form_bounds:
+        b = form_bounds[0]
+        return False, f"{b['key']} ran to the {b['side']} bound of its range ({b['bound']:.4g})"
+    if c.ci95["pooled"][0] <= 0:
+        return False, "held-out improvement not significant (95 % interval reaches 0)"
+    if c.improvement["pooled"] < FLOOR:
+        return False, f"held-out improvement {c.improvement['pooled']:.3f} noise variances is below the floor {FLOOR}"
+    if own_train < FLOOR:
+        return False, "switching the form off again in the refitted model barely changes the fit: the gain is the " \
+                      "re-calibration's, not the form's"
+    if own is not None and own.ci95["pooled"][0] <= 0:
+        return False, "where the form acts on the held-out data, switching it off is not significantly worse"
+    for o in outputs:
+        if c.p_worse[o] >= HARM_P:
+            return False, f"makes the {o} held-out error worse (in {100 * c.p_worse[o]:.0f} % of the resamples)"
+    return True, "passes"
 
-    # 1. calibrate the judged model
-    model = dict(model_plant_cfg)
-    specs = baseline_specs(model)
-    fit0 = calibrate(problem, model, specs, max_nfev=40)
-    if fit0.dropped:
-        notes.append("not informed by the data (kept at their values): " + ", ".join(fit0.dropped))
-    effects_before = [e for e in enabled_effects(model)]
-    calibrated = {"before": dict(fit0.values)}
 
-    current: Fit = fit0
-    causes: list[str] = []
-    cand_by_name: dict[str, Candidate] = {}
-    masks = problem_masks(problem)
-    for iteration in range(1, max_causes + 1):
-        res = problem.residuals(current.cfg)
-        base_sim = sim_outputs(problem, current.cfg)
-        # generic signals (first iteration only: they describe the judged model's residual)
-        if iteration == 1:
-            r0 = get_value(current.cfg, "geometry.resistance_ohm")
-            gens = [generic_signals(r, r0) for r in inputs]
-            for name in ("time", "cycle_count", "motor_angle", "direction", "time_since_stop", "heater_power"):
-                cols = {}
-                for o in OUTPUTS:
-                    parts = [g[name][idx] for g, idx in zip(gens, train_idx) if len(idx)]
-                    cols[o] = np.concatenate(parts)[masks[o]]
-                err, dbic, per = pooled(res, cols)
-                cand_by_name[name] = Candidate(name, "signal", err, {"delta_bic": dbic, "err_per_output": per,
-                                                                     "output": max(per, key=per.get) if per else None})
-        # screen the effects the model leaves off
-        screened = []
-        for name in candidate_effects(current.cfg):
-            s = screen_effect(problem, current.cfg, name, res, base_sim)
-            screened.append((name, s))
-            ev = {"err": s["err"], "delta_bic_screen": s["delta_bic"], "err_per_output": s["per_output"],
-                  "screen_params": s["params"], "iteration": iteration,
-                  "output": max(s["per_output"], key=s["per_output"].get) if s["per_output"] else None}
-            cand_by_name[name] = Candidate(name, "effect", s["err"], ev)
-        screened.sort(key=lambda x: -x[1]["err"])
-        to_refit = [(n, s) for n, s in screened if s["delta_bic"] < SCREEN_DBIC and s["err"] > 0.01][:REFIT_TOP]
-        if not to_refit:
-            notes.append(f"iteration {iteration}: no candidate effect's signature explains the residual "
-                         f"(screening delta-BIC >= {SCREEN_DBIC})")
-            break
-        best = None
-        hold_cur = _heldout_rmse(current.cfg, inputs, eval_idx)
-        for name, s in to_refit:
-            cfg_on = switch(current.cfg, name, True, s["params"])
-            specs_ext = baseline_specs(cfg_on)
-            start = dict(current.values)
-            for sp in CANDIDATE_SPECS[name]:
-                start[sp.key] = get_value(cfg_on, sp.key)
-            fit = calibrate(problem, cfg_on, specs_ext, start=start, max_nfev=30)
-            n = fit.n
-            dbic = n * np.log(max(fit.rss, 1e-300) / max(current.rss, 1e-300)) + (fit.k - current.k) * np.log(n)
-            score = max(0.0, 1.0 - fit.rss / current.rss) if current.rss > 0 else 0.0
-            hold = _heldout_rmse(fit.cfg, inputs, eval_idx)
-            ablated = _heldout_rmse(switch(fit.cfg, name, False), inputs, eval_idx)
-            gains = {o: _rel(hold_cur[o], hold[o]) for o in OUTPUTS}
-            own = {o: _rel(ablated[o], hold[o]) for o in OUTPUTS}
-            best_o = max(gains, key=lambda o: gains[o])
-            ok = (gains[best_o] >= GAIN_MIN and min(gains.values()) > -GAIN_MIN and dbic < DBIC_MAX
-                  and own[best_o] >= 0.5 * gains[best_o])
-            ev = cand_by_name[name].evidence
-            ev.update({"output": best_o, "delta_bic": float(dbic), "heldout_gain": gains[best_o],
-                       "heldout_gain_per_output": gains, "own_gain_per_output": own, "refit": True,
-                       "params": {sp.key: fit.values.get(sp.key) for sp in CANDIDATE_SPECS[name]},
-                       "significant": bool(ok)})
-            cand_by_name[name].score = score
-            if ok and (best is None or dbic < best[2]):
-                best = (name, fit, dbic)
-        if best is None:
-            notes.append(f"iteration {iteration}: refitted {', '.join(n for n, _ in to_refit)}; "
-                         f"none gives a significant held-out improvement (>= {GAIN_MIN:.0%})")
-            break
-        name, fit, dbic = best
-        causes.append(name)
-        current = fit
-        notes.append(f"iteration {iteration}: named {name} (training delta-BIC {dbic:.0f}, held-out gain "
-                     f"{cand_by_name[name].evidence['heldout_gain']:.0%} on {cand_by_name[name].evidence['output']})")
+def _refit(ctx: _Context, current: Fit, cur_scores: Scores, f: str, params: dict, centre: dict) -> dict:
+    problem = ctx.problem
+    cfg_on = switch(current.cfg, f, True, params)
+    start = dict(current.values)
+    start.update({f"{f}.{k}": v for k, v in params.items()})
+    fit = calibrate(problem, cfg_on, baseline_specs(cfg_on), start=start, centre=centre, max_nfev=REFIT_NFEV)
+    s_new = ctx.scores(fit.cfg)
+    abl_cfg = switch(fit.cfg, f, False)
+    v_abl = problem.vector(abl_cfg)
+    rss_abl = float(v_abl @ v_abl)
+    c = ctx.compare(cur_scores, s_new)
+    s_abl = ctx.scores(abl_cfg)
+    active = bool(np.any(np.abs(s_abl.sse - s_new.sse) > 1e-9 * (1.0 + np.abs(s_new.sse))))
+    own = ctx.compare(s_abl, s_new) if active else None
+    bounds = [b for b in fit.at_bound if b["key"].split(".")[0] == f]
+    own_train = (rss_abl - fit.rss) / max(len(v_abl), 1)
+    ok, why = _gate(c, own_train, own, bounds, ctx.outputs)
+    return {"fit": fit, "scores": s_new, "cmp": c, "ok": ok, "why": why, "own_train": own_train, "own": own,
+            "abl_cfg": abl_cfg, "rss_abl": rss_abl}
 
-    calibrated["after"] = dict(current.values)
-    # full-resolution replays for the final numbers and figures
-    series: dict[str, np.ndarray] = {}
-    full_res_before = {o: [] for o in OUTPUTS}
-    full_res_after = {o: [] for o in OUTPUTS}
-    parts: dict[str, list] = {k: [] for k in ("t", "heldout", "length_measured", "length_before", "length_after",
-                                              "resistance_measured", "resistance_before", "resistance_after")}
+
+def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: list[str], centre: dict,
+               it: int, say: Progress) -> tuple[dict, tuple | None, tuple | None]:
+    """Screen, refit, gate. Returns (evidence, pick, better_current): ``pick`` = (form, fit, scores,
+    comparison, form confidence, selection confidence) or None; ``better_current`` = (fit, scores)
+    when a refit showed the judged parameters were a poorer optimum (the caller re-runs)."""
+    problem = ctx.problem
+    residual = stacked(problem.residuals(current.cfg), ctx.outputs)
+    scale = _run_scale(ctx, current.cfg)
+    forms = _eligible(ctx, current.cfg, named_families)
+    say(f"iteration {it}: screening {len(forms)} candidate forms")
+    screened = {f: screen(problem, current.cfg, f, residual, residual, scale) for f in forms}
+    by_family: dict[str, list[str]] = {}
+    for f in sorted(forms, key=lambda f: -screened[f]["score"]):
+        if screened[f]["score"] >= SCREEN_MIN:
+            by_family.setdefault(FAMILY_OF[f], []).append(f)
+    fam_rank = sorted(by_family, key=lambda fam: -screened[by_family[fam][0]]["score"])
+    # every form of the leading family (the form is decided on held-out data, not by the
+    # screen), then the best form of each next family
+    to_refit: list[str] = list(by_family[fam_rank[0]]) if fam_rank else []
+    for fam in fam_rank[1:]:
+        if len(to_refit) < REFIT_MAX:
+            to_refit.append(by_family[fam][0])
+    evidence: dict = {"iteration": it, "screened": {f: {"family": FAMILY_OF[f], **screened[f]} for f in forms},
+                      "refit": {}, "named": None}
+    results = {}
+    for f in to_refit:
+        say(f"iteration {it}: refitting {FAMILY_OF[f]} ({FAMILIES[FAMILY_OF[f]][f]})")
+        res = _refit(ctx, current, cur_scores, f, screened[f]["params"], centre)
+        results[f] = res
+        evidence["refit"][f] = {"family": FAMILY_OF[f], "form": FAMILIES[FAMILY_OF[f]][f], "passed": res["ok"],
+                                "reason": res["why"], "heldout": res["cmp"].to_json(),
+                                "own_train_noise_var": res["own_train"],
+                                "own_heldout": res["own"].to_json() if res["own"] is not None else None,
+                                "params": {s.key: res["fit"].values.get(s.key) for s in FORM_SPECS[f]},
+                                "at_bound": res["fit"].at_bound}
+    stuck = [f for f, r in results.items() if r["rss_abl"] < current.rss * (1 - 1e-3)]
+    if stuck:
+        f = min(stuck, key=lambda f: results[f]["rss_abl"])
+        say(f"iteration {it}: a refit found better values of the model's own parameters; re-calibrating")
+        cfg = results[f]["abl_cfg"]
+        fit = calibrate(problem, cfg, baseline_specs(cfg), start=None, centre=centre, max_nfev=40)
+        if fit.rss < current.rss:
+            evidence["recalibrated"] = f"the judged parameters were a poorer optimum (found while refitting {f})"
+            return evidence, None, (fit, ctx.scores(fit.cfg))
+    passing = [f for f, r in results.items() if r["ok"]]
+    if not passing:
+        return evidence, None, None
+    best = max(passing, key=lambda f: results[f]["cmp"].improvement["pooled"])
+    draws = {f: r["cmp"].draws for f, r in results.items()}
+    rivals = [f for f in passing if f != best]
+    select = float(np.mean(np.all([draws[best] > draws[f] for f in rivals], axis=0))) if rivals else 1.0
+    same = [f for f in results if f != best and FAMILY_OF[f] == FAMILY_OF[best]]
+    form_conf = float(np.mean(np.all([draws[best] > draws[f] for f in same], axis=0))) if same else 1.0
+    evidence["named"] = best
+    r = results[best]
+    return evidence, (best, r["fit"], r["scores"], r["cmp"], form_conf, select), None
+
+
+def _series(ctx: _Context, before: list[dict], after: list[dict]) -> dict[str, np.ndarray]:
+    parts: dict[str, list] = {k: [] for k in ("t", "heldout")}
     t_off = 0.0
-    for r in inputs:
-        lb, rb = replay(fit0.cfg, r, None)
-        if causes:
-            la, ra = replay(current.cfg, r, None)
-        else:
-            la, ra = lb, rb
-        parts["t"].append(r.t + t_off)
-        t_off += r.t[-1] - r.t[0] + 1.0 if len(r.t) else 0.0
+    for r, b, a in zip(ctx.inputs, before, after):
+        parts["t"].append(r.t - r.t[0] + t_off)
+        t_off += r.duration_s + 1.0
         parts["heldout"].append(r.heldout)
-        for o, b, a in (("length", lb, la), ("resistance", rb, ra)):
-            meas = getattr(r, o)
-            parts[f"{o}_measured"].append(meas)
-            parts[f"{o}_before"].append(b)
-            parts[f"{o}_after"].append(a)
-            full_res_before[o].append(b - meas)
-            full_res_after[o].append(a - meas)
-    series = {k: np.concatenate(v) for k, v in parts.items()}
-    gain = []
-    ho = series["heldout"]
-    for o in OUTPUTS:
-        db = series[f"{o}_before"][ho] - series[f"{o}_measured"][ho]
-        da = series[f"{o}_after"][ho] - series[f"{o}_measured"][ho]
-        db, da = db[np.isfinite(db)], da[np.isfinite(da)]
-        b = float(np.sqrt(np.mean(db ** 2))) if len(db) else float("nan")
-        a = float(np.sqrt(np.mean(da ** 2))) if len(da) else float("nan")
-        gain.append(Gain(o, b, a, _rel(b, a)))
-    # residual tests on the full-resolution residuals
-    sigs = {}
-    gens = [generic_signals(r) for r in inputs]
-    for name in ("time", "cycle_count", "motor_angle", "direction", "time_since_stop", "heater_power"):
-        sigs[name] = np.concatenate([g[name][:, 0] for g in gens])
-    sigs["turns"] = np.concatenate([r.turns for r in inputs])
-    sigs["load"] = np.concatenate([r.load_g for r in inputs])
-    rt_before = test_residuals({o: np.concatenate(v) for o, v in full_res_before.items()}, sigs)
-    rt_after = test_residuals({o: np.concatenate(v) for o, v in full_res_after.items()}, sigs)
-    if causes:
-        # the named cause's signature: extended model minus the same model with the cause off
-        cfg_off = switch(current.cfg, causes[0], False)
-        sig_parts = []
-        for r in inputs:
-            lo, ro = replay(cfg_off, r, None)
-            la, ra = replay(current.cfg, r, None)
-            o = cand_by_name[causes[0]].evidence.get("output", "length")
-            sig_parts.append((la - lo) if o == "length" else (ra - ro))
-        series["cause_signal"] = np.concatenate(sig_parts)
-    candidates = sorted(cand_by_name.values(), key=lambda c: (c.kind != "effect", -c.score))
-    notes.append(f"diagnose took {time.perf_counter() - t_start:.1f} s")
-    return DiagnoseResult(causes[0] if causes else None, causes, candidates, gain,
-                          {"before": rt_before, "after": rt_after}, effects_before, enabled_effects(current.cfg),
-                          calibrated, series, notes)
+        for o in OUTPUTS:
+            for key, arr in ((f"{o}_measured", r.output(o)), (f"{o}_before", b[o]), (f"{o}_after", a[o])):
+                parts.setdefault(key, []).append(arr)
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def _r2_noise_free(ctx: _Context, sims: list[dict], o: str) -> float | None:
+    """1 - (held-out MSE - noise) / (held-out variance - noise), or None without signal."""
+    meas = np.concatenate([r.output(o)[r.heldout & r.scored] for r in ctx.inputs])
+    sim = np.concatenate([s[o][r.heldout & r.scored] for r, s in zip(ctx.inputs, sims)])
+    ok = np.isfinite(meas) & np.isfinite(sim)
+    if ok.sum() < 20:
+        return None
+    nv = ctx.noise[o].rms ** 2
+    var = float(np.var(meas[ok])) - nv
+    if var < 4 * nv:
+        return None
+    mse = float(np.mean((sim[ok] - meas[ok]) ** 2)) - nv
+    return 1.0 - max(mse, 0.0) / var
+
+
+def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *, max_causes: int = 3,
+             seed: int = 0, progress: Progress | None = None, outputs: tuple[str, ...] | None = None,
+             model_path: str | Path | None = None) -> DiagnoseResult:
+    """Judge ``model_plant_cfg`` against ``runs`` (RunData); see the module docstring.
+
+    Raises :class:`~tsa_bench.analysis.holdout.HoldoutError` for a bad ``holdout`` and
+    ValueError for bad ``outputs``; every other problem of the data ends in a verdict.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda msg: None)
+    outputs = tuple(outputs or OUTPUTS)
+    if not outputs or any(o not in OUTPUTS for o in outputs):
+        raise ValueError(f"outputs must be among {', '.join(OUTPUTS)}, got {', '.join(outputs) or 'none'}")
+    model = dict(model_plant_cfg)
+    inputs = [run_inputs(r, float(model.get("initial_load_g", 0.0))) for r in runs]
+    notes: list[str] = []
+    finish = _Finisher(runs, model, model_path, seed, t0, outputs, notes)
+    say("checking the inputs")
+    missing = missing_inputs(inputs, outputs)
+    hold = split(inputs, holdout) if not missing else Holdout(holdout or "default", "not applied")
+    if missing:
+        return finish.mismatch_only(missing, hold)
+    if not all(r.load_recorded for r in inputs):
+        notes.append(f"a run records no load; the model's initial_load_g ({model.get('initial_load_g', 0)} g) is "
+                     "assumed")
+    if hold.one_sided:
+        notes.append("excitation on one side of the holdout only: " + ", ".join(hold.one_sided))
+    noise = {o: noise_model(inputs, o) for o in outputs}
+    bad = [o for o in outputs if not np.isfinite(noise[o].rms)]
+    if bad:
+        return finish.mismatch_only([(f"{o}: too few samples to estimate the sensor noise", "record longer holds")
+                                     for o in bad], hold)
+    ctx = _Context(inputs, outputs, noise, hold, seed)
+
+    say("calibrating the judged model: geometry from the holds")
+    pts = hold_points(inputs)
+    start = staged_start(model, pts, noise["length"].sigma) if "length" in outputs else {}
+    specs = baseline_specs(model)
+    centre = {s.key: get_value(model, s.key) for s in specs}
+    say("calibrating the judged model: all parameters")
+    fit0 = calibrate(ctx.problem, model, specs, start=start, centre=centre, max_nfev=60)
+    if fit0.rss / max(fit0.n, 1) > 4.0 and start:
+        say("calibrating the judged model: second start (the model's own values)")
+        alt = calibrate(ctx.problem, model, specs, centre=centre, max_nfev=60)
+        if alt.rss < fit0.rss:
+            fit0 = alt
+    say("testing the judged model's residuals")
+    s0 = ctx.scores(fit0.cfg)
+    r0 = get_value(fit0.cfg, "geometry.resistance_ohm")
+    tests0 = ctx.residual_tests(s0.sims, r0)
+    current, cur_scores = fit0, s0
+    _s0_first = s0
+    chosen: list[dict] = []
+    iterations: list[dict] = []
+    candidates: dict[str, Candidate] = {}
+    if any(t["structured"] for t in tests0.values()):
+        it, redone = 1, False
+        while it <= max_causes:
+            ev, pick, better = _iteration(ctx, current, cur_scores, [FAMILY_OF[c["form"]] for c in chosen], centre,
+                                          it, say)
+            iterations.append(ev)
+            for f, s in ev["screened"].items():
+                candidates[f] = Candidate(f, "effect", s["score"], {"family": FAMILY_OF[f],
+                                                                    "form": FAMILIES[FAMILY_OF[f]][f],
+                                                                    "iteration": it, "screen": s,
+                                                                    **({"refit": ev["refit"][f]} if f in ev["refit"]
+                                                                       else {})})
+            if better is not None and not redone:
+                current, cur_scores = better
+                if not chosen:
+                    fit0, s0 = better
+                notes.append(f"iteration {it}: re-calibrated the model's own parameters (a better optimum)")
+                redone = True
+                continue
+            redone = False
+            if pick is None:
+                notes.append(f"iteration {it}: no candidate passed the naming gate")
+                break
+            form, fit, s_new, c, form_conf, select = pick
+            chosen.append({"form": form, "gain": c.relative, "form_conf": form_conf, "select": select,
+                           "before": (current, cur_scores)})
+            current, cur_scores = fit, s_new
+            notes.append(f"iteration {it}: {FAMILY_OF[form]} ({FAMILIES[FAMILY_OF[form]][form]}) passed, held-out "
+                         f"improvement {c.improvement['pooled']:.2f} noise variances")
+            it += 1
+    else:
+        notes.append("the judged model's residuals are consistent with the noise model: no candidate screened")
+    if chosen and chosen[0]["before"][0] is not fit0:
+        fit0, s0 = chosen[0]["before"]
+    if s0 is not _s0_first:
+        tests0 = ctx.residual_tests(s0.sims, get_value(fit0.cfg, "geometry.resistance_ohm"))
+    return finish.complete(ctx, fit0, s0, tests0, current, cur_scores, chosen, iterations, candidates, hold, centre,
+                           say)
+
+
+class _Finisher:
+    """Builds the result (final checks, ordering, verdict, provenance)."""
+
+    def __init__(self, runs, model, model_path, seed, t0, outputs, notes) -> None:
+        self.runs, self.model, self.model_path, self.seed, self.t0 = runs, model, model_path, seed, t0
+        self.outputs, self.notes = outputs, notes
+
+    def _prov(self, hold: Holdout) -> dict:
+        import json
+        return provenance(self.runs, self.model_path, json.dumps(self.model, sort_keys=True, default=str),
+                          hold.to_json(), self.seed, time.perf_counter() - self.t0)
+
+    def mismatch_only(self, missing: list[tuple[str, str]], hold: Holdout) -> DiagnoseResult:
+        mism = vd.mismatch_entries(missing, [], {})
+        effects = enabled_effects(self.model)
+        return DiagnoseResult("model_mismatch", vd.summary_line("model_mismatch", [], [], mism, {}), [], [], [], {},
+                              effects, effects, {}, {}, self.notes, mismatch=mism, holdout=hold.to_json(),
+                              provenance=self._prov(hold), outputs=self.outputs)
+
+    def complete(self, ctx: _Context, fit0: Fit, s0: Scores, tests0: dict, current: Fit, cur_scores: Scores,
+                 chosen: list[dict], iterations: list[dict], candidates: dict, hold: Holdout, centre: dict,
+                 say: Progress) -> DiagnoseResult:
+        say("testing the final model")
+        r0 = get_value(current.cfg, "geometry.resistance_ohm")
+        tests1 = ctx.residual_tests(cur_scores.sims, r0) if chosen else tests0
+        states = {o: vd.OutputState(tests0[o], tests1[o], _r2_noise_free(ctx, cur_scores.sims, o), UNITS[o])
+                  for o in ctx.outputs}
+        named, partial = [], []
+        for k, ch in enumerate(chosen):
+            form = ch["form"]
+            fam = FAMILY_OF[form]
+            if len(chosen) == 1:
+                s_drop = s0            # the judged model, calibrated without it
+            else:
+                say(f"final model: re-calibrating without {fam} to measure its own part")
+                cfg = switch(current.cfg, form, False)
+                drop = calibrate(ctx.problem, cfg, baseline_specs(cfg), start=dict(current.values), centre=centre,
+                                 max_nfev=REFIT_NFEV)
+                s_drop = ctx.scores(drop.cfg)
+            own = ctx.compare(s_drop, cur_scores)
+            main = max(ctx.outputs, key=lambda o: own.improvement[o])
+            share = vd.share_removed(states[main])
+            cause = NamedCause(fam, FAMILIES[fam][form], form, main,
+                               own.p_above["pooled"], ch["form_conf"], own.improvement["pooled"],
+                               own.ci95["pooled"], ch["gain"],
+                               {s.key: current.values.get(s.key) for s in FORM_SPECS[form]})
+            if share < vd.SHARE_MIN:
+                partial.append({**cause.to_json(), "explained_share": share,
+                                "why": f"removes only {100 * share:.0f} % of the {main} residual's structure"})
+                continue
+            if states[main].after.get("structured"):
+                cause.caveats.append(vd.follows_text(main, states[main].after) + " after naming it (the final model "
+                                     f"removed {vd.percent(share)} of the structure)")
+                cause.confidence *= share
+            named.append(cause)
+        named.sort(key=lambda c: -c.own_improvement)
+        bounds = [b for b in current.at_bound if b["key"].split(".")[0] not in FAMILY_OF]
+        mism = vd.mismatch_entries([], bounds, states)
+        unexplained = [vd.unexplained_entry(o, st) for o, st in states.items() if st.after.get("structured")]
+        if mism:
+            verdict = "model_mismatch"
+            partial += [{**c.to_json(), "why": "the model does not represent the data"} for c in named]
+            named = []
+        elif named:
+            verdict = "named"
+        elif unexplained:
+            verdict = "unexplained"
+        else:
+            verdict = "explained"
+        summary = vd.summary_line(verdict, named, unexplained, mism, states)
+        gains = []
+        m0, m1 = s0.mse(), cur_scores.mse()
+        for o in ctx.outputs:
+            b, a = np.sqrt(m0[o]) * ctx.sigma[o], np.sqrt(m1[o]) * ctx.sigma[o]
+            gains.append(Gain(o, float(b), float(a), float((b - a) / b) if b > 0 and np.isfinite(a) else 0.0))
+        series = _series(ctx, s0.sims, cur_scores.sims)
+        if named:
+            off = ctx.scores(switch(current.cfg, named[0].variant, False)).sims
+            o = named[0].output
+            series["cause_signal"] = np.concatenate([s[o] - f[o] for s, f in zip(cur_scores.sims, off)])
+        calibration = {"judged": {"at_bound": fit0.at_bound, "undetermined": fit0.undetermined,
+                                  "dropped": fit0.dropped, "rms_noise_units": float(np.sqrt(fit0.rss / max(fit0.n, 1)))},
+                       "final": {"at_bound": current.at_bound, "undetermined": current.undetermined,
+                                 "dropped": current.dropped,
+                                 "rms_noise_units": float(np.sqrt(current.rss / max(current.n, 1)))}}
+        if fit0.undetermined:
+            self.notes.append("not determined by these data (kept near the model's values): "
+                              + ", ".join(fit0.undetermined))
+        cands = sorted(candidates.values(), key=lambda c: -c.score)
+        self.notes.append(f"diagnose took {time.perf_counter() - self.t0:.1f} s")
+        return DiagnoseResult(
+            verdict, summary, named, cands, gains, {"before": tests0, "after": tests1},
+            enabled_effects(self.model), enabled_effects(current.cfg),
+            {"before": dict(fit0.values), "after": dict(current.values)}, series, self.notes,
+            unexplained=unexplained, mismatch=mism, partial=partial,
+            noise={o: ctx.noise[o].to_json() for o in ctx.outputs}, calibration=calibration,
+            holdout=hold.to_json(), iterations=iterations, provenance=self._prov(hold), outputs=ctx.outputs)

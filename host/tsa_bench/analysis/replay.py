@@ -124,17 +124,3 @@ def _post_stop_windows(inp: RunInputs, stop: int, budget: int, width: int = 12) 
     pick = np.unique(np.linspace(0, len(stops) - 1, n_win).astype(int))
     parts = [np.arange(stops[i] - 1, stops[i] + w[i]) for i in pick]
     return np.concatenate(parts) if parts else np.zeros(0, int)
-
-
-def noise_level(x: np.ndarray, mask: np.ndarray | None = None) -> float:
-    """Sensor noise std from first differences (trimmed, robust to steps and quantisation)."""
-    d = np.diff(x)
-    ok = np.isfinite(d)
-    if mask is not None:
-        ok &= mask[1:] & mask[:-1]
-    d = d[ok]
-    if len(d) < 10:
-        return float("nan")
-    d2 = np.sort(d * d)
-    d2 = d2[: max(1, int(0.95 * len(d2)))]
-    return float(np.sqrt(0.5 * np.mean(d2) / 0.79))  # 0.79: second moment kept by a 95 % trim of a Gaussian

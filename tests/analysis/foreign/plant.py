@@ -1,0 +1,40 @@
+"""Assemble the independent plant: rig + effects (in stage order) + sensor noise.
+
+Units: as :mod:`tests.analysis.foreign.rig`. Returns the measured length (mm) and
+resistance (ohm, NaN while the heater is on, as a bench would flag it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.analysis.foreign.effects import STAGES, Effect, PlantRun
+from tests.analysis.foreign.rig import Rig, resistance_ohm, tsa_length_mm
+from tests.analysis.foreign.walks import History
+
+
+def run_plant(rig: Rig, h: History, effects: list[Effect] = (), seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    run = PlantRun(rig, h.t, h.turns.copy(), h.load_g, h.volts, h.moving, h.turns.copy(), h.turns.copy(), rng=rng)
+    by_stage = {s: [e for e in effects if e.stage == s] for s in STAGES}
+    for e in by_stage["motor"]:
+        e.apply(run)
+    run.twist = run.turns.copy()
+    for e in by_stage["twist"]:
+        e.apply(run)
+    run.length = tsa_length_mm(rig, run.twist, h.load_g)
+    for e in by_stage["length"]:
+        e.apply(run)
+    run.resistance = resistance_ohm(rig, run.length, run.twist)
+    for e in by_stage["resistance"]:
+        e.apply(run)
+    for e in by_stage["sensor"]:
+        e.apply(run)
+    length = run.length + rng.normal(0.0, rig.length_noise_mm, len(h))
+    res = run.resistance + rng.normal(0.0, rig.resistance_noise_ohm, len(h))
+    if rig.length_step_mm > 0:
+        length = np.round(length / rig.length_step_mm) * rig.length_step_mm
+    if rig.resistance_step_ohm > 0:
+        res = np.round(res / rig.resistance_step_ohm) * rig.resistance_step_ohm
+    res[h.volts > 0] = np.nan
+    return length, res
