@@ -71,11 +71,13 @@ class Comparison:
     p_above: dict[str, float]             # fraction of replicates above the floor
     p_worse: dict[str, float]             # fraction of replicates below minus the floor
     relative: dict[str, float]            # (MSE_A - MSE_B) / MSE_A per output
+    mse_before: dict[str, float]          # MSE_A per output, noise variances per sample
     draws: np.ndarray                     # (B,) pooled improvement replicates
 
     def to_json(self) -> dict:
         return {"improvement_noise_var": self.improvement, "ci95": {k: list(v) for k, v in self.ci95.items()},
-                "p_above_floor": self.p_above, "p_worse_than_floor": self.p_worse, "relative_mse": self.relative}
+                "p_above_floor": self.p_above, "p_worse_than_floor": self.p_worse, "relative_mse": self.relative,
+                "mse_before_noise_var": self.mse_before}
 
 
 def _stat(da: np.ndarray, cnt: np.ndarray) -> np.ndarray:
@@ -94,7 +96,8 @@ def compare(a: Scores, b: Scores, floor: float, n_boot: int = 1000, seed: int = 
     m = len(diff)
     if m == 0:
         z = {o: 0.0 for o in (*outs, "pooled")}
-        return Comparison(z, {k: (0.0, 0.0) for k in z}, z, z, {o: 0.0 for o in outs}, np.zeros(0))
+        return Comparison(z, {k: (0.0, 0.0) for k in z}, z, z, {o: 0.0 for o in outs}, {o: 0.0 for o in outs},
+                          np.zeros(0))
     pick = rng.integers(0, m, size=(n_boot, m))
     dsum = diff[pick].sum(axis=1)          # (B, outputs)
     csum = cnt[pick].sum(axis=1)
@@ -111,4 +114,4 @@ def compare(a: Scores, b: Scores, floor: float, n_boot: int = 1000, seed: int = 
     ma, mb = a.mse(), b.mse()
     rel = {o: (ma[o] - mb[o]) / ma[o] if ma[o] > 0 and np.isfinite(ma[o]) and np.isfinite(mb[o]) else 0.0
            for o in outs}
-    return Comparison(imp, ci, pa, pw, rel, pooled)
+    return Comparison(imp, ci, pa, pw, rel, ma, pooled)
