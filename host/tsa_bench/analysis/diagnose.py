@@ -53,7 +53,7 @@ from tsa_bench.analysis.quasistatic import hold_points, staged_start
 from tsa_bench.analysis.replay import subsample
 from tsa_bench.analysis.result import Candidate, DiagnoseResult, Gain, NamedCause
 from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
-from tsa_bench.analysis.screening import screen, stacked
+from tsa_bench.analysis.screening import jacobian, screen, stacked
 from tsa_bench.analysis.signals import signal_bases
 from tsa_bench.analysis.structure import follows, jumps, ljung_box, structure_test
 from tsa_bench.analysis import verdict as vd
@@ -98,6 +98,7 @@ class _Context:
         self.rate = float(np.median([r.rate_hz for r in inputs]))
         self.moving = np.concatenate([r.moving for r in inputs])
         self.kinds = {k for k, v in hold.kinds.items() if v["train"] + v["heldout"] > 0}
+        self.induced: set[str] = set()   # outputs structured only through the joint fit with the other
 
     def scores(self, cfg: Mapping[str, Any]) -> Scores:
         return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs)
@@ -115,6 +116,22 @@ class _Context:
         return out
 
 
+def _induced(ctx: _Context, fit0: Fit, structured: list[str], centre: dict, say: Progress) -> set[str]:
+    """Outputs whose residual is noise when the judged model is calibrated on them alone."""
+    out = set()
+    for o in structured:
+        say(f"calibrating the judged model on the {o} alone")
+        p = ctx.problem
+        alone = Problem(p.runs, p.idx, p.train, p.sigma, (o,))
+        fit = calibrate(alone, fit0.cfg, baseline_specs(fit0.cfg), start=dict(fit0.values), centre=centre,
+                        max_nfev=REFIT_NFEV)
+        sims = ctx.scores(fit.cfg).sims
+        test = ctx.residual_tests(sims, get_value(fit.cfg, "geometry.resistance_ohm"))[o]
+        if not test["structured"]:
+            out.add(o)
+    return out if len(out) < len(structured) else set()
+
+
 def _eligible(ctx: _Context, cfg: Mapping[str, Any], named_families: list[str]) -> list[str]:
     on = set(enabled_effects(cfg))
     out = []
@@ -125,6 +142,8 @@ def _eligible(ctx: _Context, cfg: Mapping[str, Any], named_families: list[str]) 
             continue
         acts = OUTPUT_OF[fam]
         if acts not in ctx.outputs and not (acts == "length" and "resistance_length" in on):
+            continue
+        if acts in ctx.induced:
             continue
         out += list(forms)
     return out
@@ -235,7 +254,8 @@ def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: 
     scale = _run_scale(ctx, current.cfg)
     forms = _eligible(ctx, current.cfg, named_families)
     say(f"iteration {it}: screening {len(forms)} candidate forms")
-    screened = {f: screen(problem, current.cfg, f, residual, residual, scale) for f in forms}
+    jac = jacobian(problem, current.cfg, residual)
+    screened = {f: screen(problem, current.cfg, f, residual, residual, scale, jac) for f in forms}
     by_family: dict[str, list[str]] = {}
     for f in sorted(forms, key=lambda f: -screened[f]["score"]):
         if screened[f]["score"] >= SCREEN_MIN:
@@ -399,6 +419,13 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
     s0 = ctx.scores(fit0.cfg)
     r0 = get_value(fit0.cfg, "geometry.resistance_ohm")
     tests0 = ctx.residual_tests(s0.sims, r0)
+    structured = [o for o in outputs if tests0[o]["structured"]]
+    if len(structured) > 1:
+        ctx.induced = _induced(ctx, fit0, structured, centre, say)
+        for o in sorted(ctx.induced):
+            notes.append(f"the {o} residual is structured only when the model must fit both outputs: calibrated on "
+                         f"the {o} alone it is noise, so its structure comes from the other output's misfit and "
+                         f"effects acting on the {o} alone are not candidates")
     current, cur_scores = fit0, s0
     _s0_first = s0
     chosen: list[dict] = []
