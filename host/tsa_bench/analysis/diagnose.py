@@ -12,15 +12,18 @@ verdict (:mod:`tsa_bench.analysis.verdict`). Steps:
    by least squares, then every parameter on a training subsample (calibrate.py);
 4. residual structure of the judged model (structure.py); if no output is structured
    above the noise the verdict is ``explained`` and nothing is screened;
-5. up to ``max_causes`` iterations: screen every candidate form the data can test
-   (screening.py), refit every form of the leading effect and the best form of the next
-   ones together with the model's own parameters, and **name** the one with the largest
+5. up to ``max_causes`` iterations: screen every candidate form the data can test (its
+   excitation occurs, :data:`~tsa_bench.analysis.families.NEEDS`) and may blame (the output it
+   acts on was structured in the judged model on its own account, so a later cause never
+   just repairs what an earlier one did to an output that was fine) (screening.py), refit every form of the leading effect and the best form of the next
+   ones that screen at least :data:`CONTENDER` of the leader, together with the model's
+   own parameters, and **name** the one with the largest
    held-out improvement among those that pass the gate: the 95 % block-bootstrap
    interval of the pooled held-out improvement over the current model is above 0 and its
    estimate is at least the relevance floor (a quarter of a noise variance per sample: a
    structure of half the noise RMS); switching the form off again in the refitted model
    worsens the training fit by at least the floor (the gain is the form's, not the
-   re-calibration's) and, where the form acts on the held-out data, worsens it
+   re-calibration's) and, on the held-out units where the form acts, worsens it
    significantly; no output's held-out error grows by more than :data:`HARM_REL` of it in
    :data:`HARM_P` of the resamples; none of the
    form's own parameters ended at a soft bound. A refit whose parameters fit the
@@ -63,6 +66,7 @@ FLOOR = RELEVANT ** 2
 N_CAL = 2000          # calibration subsample (all runs)
 REFIT_MAX = 4         # forms refitted per iteration
 REFIT_NFEV = 20       # function evaluations per refit
+CONTENDER = 0.1       # other effects are refitted when their screen reaches this share of the leader's
 #: a form whose companion only acts through it (the resistance's temperature coefficient needs the
 #: strings to heat) is also refitted together with it
 COMPANIONS = {"thermal_dynamics": ("resistance_temperature",)}
@@ -70,7 +74,7 @@ SCREEN_MIN = 0.01     # a form's signature must explain at least this share of t
 N_BOOT = 1000
 #: a candidate that makes an output's held-out error worse by more than HARM_REL of it (and the floor),
 #: in HARM_P of the resamples, is rejected: a cure must not damage another output noticeably
-HARM_P = 0.8
+HARM_P = 0.5
 HARM_REL = 0.1
 UNITS = {"length": "mm", "resistance": "ohm"}
 Progress = Callable[[str], None]
@@ -99,6 +103,7 @@ class _Context:
         self.moving = np.concatenate([r.moving for r in inputs])
         self.kinds = {k for k, v in hold.kinds.items() if v["train"] + v["heldout"] > 0}
         self.induced: set[str] = set()   # outputs structured only through the joint fit with the other
+        self.source: set[str] = set(outputs)   # outputs structured in the judged model (what may be blamed)
 
     def scores(self, cfg: Mapping[str, Any]) -> Scores:
         return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs)
@@ -132,6 +137,16 @@ def _induced(ctx: _Context, fit0: Fit, structured: list[str], centre: dict, say:
     return out if len(out) < len(structured) else set()
 
 
+def _blamable(ctx: _Context, fam: str, on: set[str]) -> bool:
+    """Whether the output ``fam`` acts on (length effects also through dR/dX) was structured in
+    the judged model on its own account: a later cause must never just repair what an earlier
+    one did to an output that was fine."""
+    acts = OUTPUT_OF[fam]
+    if acts not in ctx.outputs:
+        acts = "resistance" if acts == "length" and "resistance_length" in on else ""
+    return acts in ctx.source and acts not in ctx.induced
+
+
 def _eligible(ctx: _Context, cfg: Mapping[str, Any], named_families: list[str]) -> list[str]:
     on = set(enabled_effects(cfg))
     out = []
@@ -140,10 +155,7 @@ def _eligible(ctx: _Context, cfg: Mapping[str, Any], named_families: list[str]) 
             continue
         if not any(k in ctx.kinds for k in NEEDS.get(fam, ())):
             continue
-        acts = OUTPUT_OF[fam]
-        if acts not in ctx.outputs and not (acts == "length" and "resistance_length" in on):
-            continue
-        if acts in ctx.induced:
+        if not _blamable(ctx, fam, on):
             continue
         out += list(forms)
     return out
@@ -239,8 +251,9 @@ def _own(ctx: _Context, fit: Fit, s_fit: Scores, abl_cfg: dict, rss_abl: float |
         v = ctx.problem.vector(abl_cfg)
         rss_abl = float(v @ v)
     s_abl = ctx.scores(abl_cfg)
-    active = bool(np.any(np.abs(s_abl.sse - s_fit.sse) > 1e-9 * (1.0 + np.abs(s_fit.sse))))
-    own = ctx.compare(s_abl, s_fit) if active else None
+    acting = np.any(np.abs(s_abl.sse - s_fit.sse) > 1e-9 * (1.0 + np.abs(s_fit.sse)), axis=1)
+    # resample only the units where the form acts: elsewhere the comparison is 0 by construction
+    own = ctx.compare(s_abl.subset(acting), s_fit.subset(acting)) if acting.any() else None
     return own, (rss_abl - fit.rss) / max(fit.n, 1)
 
 
@@ -264,8 +277,9 @@ def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: 
     # every form of the leading family (the form is decided on held-out data, not by the
     # screen), then the best form of each next family
     to_refit: list[str] = list(by_family[fam_rank[0]]) if fam_rank else []
+    top = screened[to_refit[0]]["score"] if to_refit else 0.0
     for fam in fam_rank[1:]:
-        if len(to_refit) < REFIT_MAX:
+        if len(to_refit) < REFIT_MAX and screened[by_family[fam][0]]["score"] >= CONTENDER * top:
             to_refit.append(by_family[fam][0])
     evidence: dict = {"iteration": it, "screened": {f: {"family": FAMILY_OF[f], **screened[f]} for f in forms},
                       "refit": {}, "named": None}
@@ -337,8 +351,9 @@ def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: 
 
 def _companion_ok(ctx: _Context, cfg: Mapping[str, Any], g: str) -> bool:
     fam = FAMILY_OF.get(g)
-    return fam is not None and not any(f in enabled_effects(cfg) for f in FAMILIES[fam]) and \
-        any(k in ctx.kinds for k in NEEDS.get(fam, ())) and OUTPUT_OF[fam] in ctx.outputs
+    on = set(enabled_effects(cfg))
+    return fam is not None and not any(f in on for f in FAMILIES[fam]) and \
+        any(k in ctx.kinds for k in NEEDS.get(fam, ())) and _blamable(ctx, fam, on)
 
 
 def _series(ctx: _Context, before: list[dict], after: list[dict]) -> dict[str, np.ndarray]:
@@ -420,6 +435,7 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
     r0 = get_value(fit0.cfg, "geometry.resistance_ohm")
     tests0 = ctx.residual_tests(s0.sims, r0)
     structured = [o for o in outputs if tests0[o]["structured"]]
+    ctx.source = set(structured)
     if len(structured) > 1:
         ctx.induced = _induced(ctx, fit0, structured, centre, say)
         for o in sorted(ctx.induced):
@@ -531,7 +547,9 @@ class _Finisher:
         named.sort(key=lambda c: -c.own_improvement)
         bounds = [b for b in current.at_bound if b["key"].split(".")[0] not in FAMILY_OF]
         mism = vd.mismatch_entries([], bounds, states)
-        unexplained = [vd.unexplained_entry(o, st) for o, st in states.items() if st.after.get("structured")]
+        unexplained = [vd.unexplained_entry(o, st, o in ctx.induced) for o, st in states.items()
+                       if st.after.get("structured")]
+        unexplained.sort(key=lambda u: u["induced"])
         if mism:
             verdict = "model_mismatch"
             partial += [{**c.to_json(), "why": "the model does not represent the data"} for c in named]

@@ -35,6 +35,10 @@ class Scores:
     outputs: tuple[str, ...]
     sims: list[dict[str, np.ndarray]]
 
+    def subset(self, keep: np.ndarray) -> "Scores":
+        """The same scores on the units ``keep`` (a boolean mask) only."""
+        return Scores(self.sse[keep], self.count[keep], self.outputs, self.sims)
+
     def mse(self) -> dict[str, float]:
         return {o: float(self.sse[:, j].sum() / self.count[:, j].sum()) if self.count[:, j].sum() else float("nan")
                 for j, o in enumerate(self.outputs)}

@@ -63,11 +63,14 @@ def follows_text(out: str, test: dict) -> str:
     return f"{out} residual is structured but follows none of the inputs"
 
 
-def unexplained_entry(out: str, st: OutputState) -> dict:
+def unexplained_entry(out: str, st: OutputState, induced: bool = False) -> dict:
     t = st.after
+    text = follows_text(out, t) + ": not among the candidates"
+    if induced:
+        text = (f"{out} residual is structured only through the joint fit with the other output (calibrated on the "
+                f"{out} alone it is noise)")
     return {"output": out, "structured_rms": t.get("structured_rms"), "units": st.units, "p": t.get("p"),
-            "follows": t.get("follows", []), "jumps": t.get("jumps", 0),
-            "text": follows_text(out, t) + ": not among the candidates"}
+            "follows": t.get("follows", []), "jumps": t.get("jumps", 0), "induced": induced, "text": text}
 
 
 def mismatch_entries(missing: list[tuple[str, str]], at_bound: list[dict], states: dict[str, OutputState]

@@ -58,7 +58,7 @@ class _Builder:
         t0 = self.now
         n = max(1, int(np.ceil(abs(target - self.pos) / speed / self.dt)))
         for k in range(1, n + 1):
-            self._emit(self.pos + (target - self.pos) * k / n, 1)
+            self._emit(self.pos + (target - self.pos) * k / n if k < n else target, 1)
         self.segments.append(("move", t0, self.now, {"to_turns": target, "rate_turns_per_s": speed}))
         self.pos = target
 
