@@ -160,17 +160,23 @@ def main() -> None:
     gens = [g.strip() for g in args.generators.split(",") if g.strip()]
     jobs = jobs_for(gens, args.seeds, args.clean, args.cases.split(",") if args.cases else None, args.minutes)
     t0 = time.perf_counter()
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs) as pool:
-            results = list(pool.map(one, jobs))
-    else:
-        results = [one(j) for j in jobs]
-    wall = time.perf_counter() - t0
-    if args.verbose:
-        for r in results:
+    results = []
+
+    def show(r: dict) -> None:
+        results.append(r)
+        if args.verbose:
             mark = "ok " if _right(r) else "BAD"
             print(f"{mark} {r['generator']:<8} {r['case']:<40} seed {r['seed']:<4} {r['seconds']:5.1f} s  "
-                  f"{r['summary'][:160]}")
+                  f"{r['summary'][:160]}", flush=True)
+
+    if args.jobs > 1:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            for r in pool.map(one, jobs):
+                show(r)
+    else:
+        for j in jobs:
+            show(one(j))
+    wall = time.perf_counter() - t0
     print(f"diagnose power: {len(results)} runs, {wall:.0f} s wall with {args.jobs} job(s)")
     for g in gens:
         report(results, g)

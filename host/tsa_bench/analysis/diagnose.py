@@ -58,7 +58,7 @@ from tsa_bench.analysis.result import Candidate, DiagnoseResult, Gain, NamedCaus
 from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
 from tsa_bench.analysis.screening import jacobian, screen, stacked
 from tsa_bench.analysis.signals import signal_bases
-from tsa_bench.analysis.structure import follows, jumps, ljung_box, structure_test
+from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
 from tsa_bench.analysis import verdict as vd
 
 #: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
@@ -81,10 +81,11 @@ Progress = Callable[[str], None]
 
 
 def _structure(res: np.ndarray, noise: Noise, rate: float, bases: dict[str, np.ndarray], moving: np.ndarray) -> dict:
-    t = structure_test(res, noise, rate)
+    t = structure_test(res, noise, rate, bases)
     t["ljung_box_p"] = ljung_box(res)[1]
-    t["follows"] = follows(res, bases, t["structured_rms"] or 0.0) if t.get("structured") else []
     t["jumps"] = jumps(res, noise, moving)
+    if not t["structured"]:
+        t["follows"] = []
     return t
 
 
@@ -412,10 +413,18 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
     if hold.one_sided:
         notes.append("excitation on one side of the holdout only: " + ", ".join(hold.one_sided))
     noise = {o: noise_model(inputs, o) for o in outputs}
-    bad = [o for o in outputs if not np.isfinite(noise[o].rms)]
+    bad = [(f"{o}: too few samples to estimate the sensor noise", "record longer holds") for o in outputs
+           if not np.isfinite(noise[o].rms)]
+    for o in outputs:
+        y = np.concatenate([r.output(o) for r in inputs])
+        spread = float(np.nanstd(y)) if np.isfinite(y).any() else 0.0
+        if np.isfinite(noise[o].rms) and noise[o].rms ** 2 > 0.5 * spread ** 2:
+            other = [p for p in OUTPUTS if p != o]
+            bad.append((f"the {o} reading is mostly noise (sample-to-sample scatter {noise[o].rms:.3g} against a "
+                        f"spread of {spread:.3g} {UNITS[o]}): nothing to judge the model on",
+                        f"check the {o} sensor and column, or judge the other output alone: --outputs {other[0]}"))
     if bad:
-        return finish.mismatch_only([(f"{o}: too few samples to estimate the sensor noise", "record longer holds")
-                                     for o in bad], hold)
+        return finish.mismatch_only(bad, hold)
     ctx = _Context(inputs, outputs, noise, hold, seed)
 
     say("calibrating the judged model: geometry from the holds")

@@ -159,7 +159,7 @@ def split(runs: list[RunInputs], spec: str | None) -> Holdout:
         for r in runs:
             i = int(np.searchsorted(r.t, r.t[-1] - value * r.duration_s))
             r.heldout[i:] = True
-        desc = f"the last {value:.0%} of each run's time"
+        desc = f"the last {100 * value:g} % of each run's time"
     else:
         raise HoldoutError(f"holdout {spec!r}: expected run:N, after:SECONDS or fraction:F")
     h = Holdout(spec, desc, _span_blocks(runs))

@@ -36,13 +36,14 @@ def _windows(res: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
     return x.mean(axis=1), x.var(axis=1, ddof=1)
 
 
-def structure_test(res: np.ndarray, noise: Noise, rate_hz: float) -> dict:
-    """{structured, p, structured_rms, rms, excess_rms, n, window}; see the module docstring."""
+def structure_test(res: np.ndarray, noise: Noise, rate_hz: float, bases: dict[str, np.ndarray] | None = None
+                   ) -> dict:
+    """{structured, testable, p, structured_rms, rms, excess_rms, follows, n, window}; see the module docstring."""
     ok = np.isfinite(res)
     n = int(ok.sum())
     w = int(max(5, min(200, round(2.0 * rate_hz))))
     if n < 4 * w or not np.isfinite(noise.rms):
-        return {"structured": False, "testable": False, "p": None, "structured_rms": None,
+        return {"structured": False, "testable": False, "p": None, "structured_rms": None, "follows": [],
                 "rms": float(np.sqrt(np.mean(res[ok] ** 2))) if n else None, "n": n, "window": w}
     means, within = _windows(res, w)
     s_w2 = float(np.mean(within))
@@ -50,20 +51,29 @@ def structure_test(res: np.ndarray, noise: Noise, rate_hz: float) -> dict:
     j = len(means)
     fstat = w * ms / max(s_w2, 1e-300)
     p = float(fdist.sf(fstat, j, j * (w - 1)))
-    s2 = ms - s_w2 / w - noise.bias_var
-    s_rms = float(np.sqrt(max(s2, 0.0)))
+    s_rms = float(np.sqrt(max(ms - s_w2 / w - noise.bias_var, 0.0)))
+    slow = bool(p < ALPHA and s_rms >= noise.floor)
+    signals = _signal_fits(res, bases or {})
+    fast = [f for f in signals if f["p"] < ALPHA and f["rms"] >= noise.floor]
+    structured_rms = max([s_rms] + [f["rms"] for f in fast])
+    fl = []
+    for f in signals:
+        share = min(1.0, f["rms"] ** 2 / structured_rms ** 2) if structured_rms > 0 else 0.0
+        if f["p"] < ALPHA and share >= SHARE_MIN:
+            fl.append({"signal": f["signal"], "share": share, "p": f["p"], "r2": f["r2"]})
     rms = float(np.sqrt(np.mean(res[ok] ** 2)))
-    return {"structured": bool(p < ALPHA and s_rms >= noise.floor), "testable": True, "p": p,
-            "structured_rms": s_rms, "rms": rms, "excess_rms": float(np.sqrt(max(rms ** 2 - noise.rms ** 2, 0.0))),
-            "n": n, "window": w, "floor": noise.floor}
+    return {"structured": slow or bool(fast), "testable": True, "p": p, "structured_rms": structured_rms,
+            "window_rms": s_rms, "rms": rms, "excess_rms": float(np.sqrt(max(rms ** 2 - noise.rms ** 2, 0.0))),
+            "follows": sorted(fl, key=lambda d: -d["share"]), "n": n, "window": w, "floor": noise.floor}
 
 
-def follows(res: np.ndarray, bases: dict[str, np.ndarray], structured_rms: float) -> list[dict]:
-    """Signals the residual follows, strongest first: {signal, share, p, r2}."""
+def _signal_fits(res: np.ndarray, bases: dict[str, np.ndarray]) -> list[dict]:
+    """OLS of the (mean-removed) residual on each signal basis: {signal, rms, p, r2}; the F-test
+    uses an effective sample size from the residual's lag-1 autocorrelation."""
     ok = np.isfinite(res)
     y = res[ok] - np.mean(res[ok]) if ok.any() else res
     n = len(y)
-    if n < 50 or structured_rms <= 0:
+    if n < 50 or not bases:
         return []
     rho = float(np.corrcoef(y[1:], y[:-1])[0, 1]) if n > 2 and np.std(y) > 0 else 0.0
     rho = min(max(rho, 0.0), 0.999)
@@ -82,11 +92,9 @@ def follows(res: np.ndarray, bases: dict[str, np.ndarray], structured_rms: float
         k = x.shape[1]
         r2 = ess / tss
         fstat = (r2 / k) / max((1 - r2) / max(n_eff - k - 1, 1.0), 1e-300)
-        p = float(fdist.sf(fstat, k, max(n_eff - k - 1, 1.0)))
-        share = min(1.0, (ess / n) / (structured_rms ** 2))
-        if p < ALPHA and share >= SHARE_MIN:
-            out.append({"signal": name, "share": share, "p": p, "r2": r2})
-    return sorted(out, key=lambda d: -d["share"])
+        out.append({"signal": name, "rms": float(np.sqrt(ess / n)), "r2": r2,
+                    "p": float(fdist.sf(fstat, k, max(n_eff - k - 1, 1.0)))})
+    return out
 
 
 def jumps(res: np.ndarray, noise: Noise, moving: np.ndarray) -> int:

@@ -4,7 +4,7 @@ Units: time in s, twist in turns, speed in turns/s, load in g, heater voltage in
 
 A walk starts untwisted under the rig's first load, then moves to random twist targets
 (a random walk over [0, reach x full twist]) at random speeds, holding a random time
-(log-uniform 0.5-40 s, now and then a long hold of 1-2.5 min) after each move; the load
+(log-uniform 0.5-25 s, now and then a long hold of 1-2 min) after each move; the load
 changes to the rig's other masses at evenly spread times (each change followed by a
 hold); it ends untwisted. Each move and hold is one segment. ``heater`` adds a few
 voltage steps held at a fixed twist (for thermal cases).
@@ -75,15 +75,17 @@ class _Builder:
                        np.array(c["moving"], np.uint8), np.array(c["segment"], np.int32), segs)
 
 
-def random_walk(rig: Rig, seed: int, minutes: float = 20.0, heater_V: tuple[float, ...] = ()) -> History:
-    """A random rotation walk of about ``minutes`` on ``rig`` (see the module docstring)."""
+def random_walk(rig: Rig, seed: int, minutes: float = 20.0, heater_V: tuple[float, ...] = (),
+                heat_at: float = 0.5) -> History:
+    """A random rotation walk of about ``minutes`` on ``rig`` (see the module docstring); the
+    heater steps ``heater_V`` (60 s each) start at the fraction ``heat_at`` of the time."""
     rng = np.random.default_rng(seed)
     top = rig.reach * min(full_twist_turns(rig, m) for m in rig.loads_g)
     b = _Builder(rig.rate_hz, rig.loads_g[0])
     b.hold(20.0)
     total = 60.0 * minutes
     changes = [total * (k + 1) / len(rig.loads_g) for k in range(len(rig.loads_g) - 1)]
-    heat_at = total * 0.5 if heater_V else None
+    heat_at = total * heat_at if heater_V else None
     while b.now < total - 60.0:
         if changes and b.now >= changes[0]:
             changes.pop(0)
@@ -105,9 +107,9 @@ def random_walk(rig: Rig, seed: int, minutes: float = 20.0, heater_V: tuple[floa
         if abs(target - b.pos) < 0.5:
             target = float(np.clip(b.pos + (2.0 if b.pos < top / 2 else -2.0), 0.0, top))
         b.move(round(target, 3), float(rng.choice([0.8, 1.5, 2.5, 4.0, 5.0])))
-        hold = float(np.exp(rng.uniform(np.log(0.5), np.log(40.0))))
-        if rng.random() < 0.12:
-            hold = float(rng.uniform(60.0, 150.0))
+        hold = float(np.exp(rng.uniform(np.log(0.5), np.log(25.0))))
+        if rng.random() < 0.08:
+            hold = float(rng.uniform(60.0, 120.0))
         b.hold(hold)
     b.move(0.0, 3.0)
     b.hold(20.0)
