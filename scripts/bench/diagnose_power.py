@@ -12,7 +12,8 @@ Generators (both in tests/, imported by path):
 For each case x seed a run is written and diagnosed against the default judged model
 (configs/bench/sim-baseline.yaml). Reported, each with a 95 % Wilson interval:
 
-* detection: in-library cases whose expected effects are all named, dominant first;
+* detection: in-library cases whose expected effects are all named, dominant first (with
+  two hidden effects, the one that changes the noise-free outputs more, in noise units);
 * wrong name: runs where an effect not hidden was named (any case);
 * out-of-library: cases answered ``unexplained`` with nothing named;
 * false alarm: clean runs not answered ``explained``;
@@ -64,7 +65,27 @@ def _library_run(case: str, seed: int, path: Path) -> dict:
         return {"verdict": "explained", "causes": (), "n": info["n"]}
     effects, verdict, causes = LIBRARY_CASES[case]
     info = hidden.generate(path, effects, seed=seed)
+    if len(causes) > 1:
+        causes = tuple(sorted(causes, key=lambda c: -_library_power(effects, c, seed)))
     return {"verdict": verdict, "causes": causes, "n": info["n"]}
+
+
+def _library_power(effects: tuple[str, ...], effect: str, seed: int) -> float:
+    """Mean squared change of the noise-free outputs, in noise variances, that ``effect`` makes
+    among ``effects`` (which of two hidden effects dominates)."""
+    import numpy as np
+
+    from tests.analysis import hidden
+    from tsa_bench.analysis.modelspec import switch
+    from tsa_bench.analysis.replay import deterministic
+    from tsa_bench.sim.history import simulate
+    h = hidden.history(hidden.protocol_steps())
+    cfg, _ = hidden.truth_config(effects, seed, h)
+    args = (h["t"], h["turns"], h["heater_voltage"], h["load_g"], h["motor_moving"].astype(bool))
+    full = simulate(deterministic(cfg), *args)
+    rest = simulate(deterministic(switch(cfg, effect, False)), *args)
+    scale = {"length_mm": np.hypot(0.05, 0.14 / np.sqrt(12)), "resistance_ohm": 0.001}
+    return float(sum(np.mean(((full[k] - rest[k]) / s) ** 2) for k, s in scale.items()))
 
 
 def _foreign_run(case: str, seed: int, path: Path, minutes: float) -> dict:

@@ -93,10 +93,10 @@ def simulate_run(plant: Mapping, protocol: str | Path, out_path: str | Path, see
     return out_path
 
 
-def verdict(effect: str | None, causes: list[str]) -> str:
+def verdict(effect: str | None, result) -> str:
     if effect is None:
-        return "FALSE ALARM" if causes else "OK (clean)"
-    return "OK" if effect in causes else "MISSED"
+        return "OK (clean)" if result.verdict == "explained" else "FALSE ALARM"
+    return "OK" if result.causes[:1] == [effect] else "MISSED"
 
 
 def main() -> None:
@@ -141,8 +141,7 @@ def main() -> None:
     n = len(runs[0])
     print(f"data        {args.protocol.name}: {n} samples, hidden effect {effect or 'none (clean)'} "
           f"(simulated in {t_sim:.1f} s, read in {t_read:.2f} s)")
-    print(f"diagnose    {t_diag:.1f} s (target < 60 s) -> named {result.causes or 'nothing'}"
-          f" [{verdict(effect, result.causes or [])}]")
+    print(f"diagnose    {t_diag:.1f} s (target <= 60 s) -> {result.summary[:150]} [{verdict(effect, result)}]")
     print(f"report      {t_rep:.1f} s (report.txt + figures + JSON)")
     print(f"total       {t_diag + t_read + t_rep:.1f} s for read + diagnose + report")
 

@@ -64,6 +64,7 @@ from tsa_bench.analysis import verdict as vd
 #: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
 FLOOR = RELEVANT ** 2
 N_CAL = 2000          # calibration subsample (all runs)
+N_REFIT = 1000        # subsample for candidate refits (the named one is then polished on N_CAL)
 REFIT_MAX = 4         # forms refitted per iteration
 REFIT_NFEV = 20       # function evaluations per refit
 CONTENDER = 0.1       # other effects are refitted when their screen reaches this share of the leader's
@@ -99,6 +100,8 @@ class _Context:
         n_total = sum(len(r) for r in inputs)
         idx = [subsample(r, len(r), max(300, N_CAL * len(r) // max(1, n_total))) for r in inputs]
         self.problem = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
+        idx = [subsample(r, len(r), max(200, N_REFIT * len(r) // max(1, n_total))) for r in inputs]
+        self.small = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
         self.units = all_units(inputs)
         self.rate = float(np.median([r.rate_hz for r in inputs]))
         self.moving = np.concatenate([r.moving for r in inputs])
@@ -127,7 +130,7 @@ def _induced(ctx: _Context, fit0: Fit, structured: list[str], centre: dict, say:
     out = set()
     for o in structured:
         say(f"calibrating the judged model on the {o} alone")
-        p = ctx.problem
+        p = ctx.small
         alone = Problem(p.runs, p.idx, p.train, p.sigma, (o,))
         fit = calibrate(alone, fit0.cfg, baseline_specs(fit0.cfg), start=dict(fit0.values), centre=centre,
                         max_nfev=REFIT_NFEV)
@@ -221,8 +224,8 @@ def _refit_specs(cfg: Mapping[str, Any], form: str) -> list:
 def _refit(ctx: _Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...], params: dict, centre: dict
            ) -> dict:
     """Refit the current model with ``forms`` switched on (``params``: form -> start values) and gate it
-    (the gate's ablation switches all of ``forms`` off)."""
-    problem = ctx.problem
+    (the gate's ablation switches all of ``forms`` off). Fitted on the smaller subsample."""
+    problem = ctx.small
     cfg_on = dict(current.cfg)
     start = dict(current.values)
     for f in forms:
@@ -249,11 +252,12 @@ def _own(ctx: _Context, fit: Fit, s_fit: Scores, abl_cfg: dict, rss_abl: float |
     """Held-out comparison of the ablated config against the fit (None where the ablation changes
     nothing held out) and the training-fit loss per sample of the ablation."""
     if rss_abl is None:
-        v = ctx.problem.vector(abl_cfg)
+        v = ctx.small.vector(abl_cfg)
         rss_abl = float(v @ v)
     s_abl = ctx.scores(abl_cfg)
-    acting = np.any(np.abs(s_abl.sse - s_fit.sse) > 1e-9 * (1.0 + np.abs(s_fit.sse)), axis=1)
-    # resample only the units where the form acts: elsewhere the comparison is 0 by construction
+    # resample only the units where the form acts (changes the error by a tenth of the floor
+    # per sample or more): elsewhere the comparison is about 0 by construction
+    acting = np.abs(s_abl.sse - s_fit.sse).sum(axis=1) >= 0.1 * FLOOR * s_fit.count.max(axis=1)
     own = ctx.compare(s_abl.subset(acting), s_fit.subset(acting)) if acting.any() else None
     return own, (rss_abl - fit.rss) / max(fit.n, 1)
 
@@ -264,12 +268,13 @@ def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: 
     comparison, form confidence, selection confidence) or None; ``better_current`` = (fit, scores)
     when a refit showed the judged parameters were a poorer optimum (the caller re-runs)."""
     problem = ctx.problem
-    residual = stacked(problem.residuals(current.cfg), ctx.outputs)
+    small = ctx.small
+    residual = stacked(small.residuals(current.cfg), ctx.outputs)
     scale = _run_scale(ctx, current.cfg)
     forms = _eligible(ctx, current.cfg, named_families)
     say(f"iteration {it}: screening {len(forms)} candidate forms")
-    jac = jacobian(problem, current.cfg, residual)
-    screened = {f: screen(problem, current.cfg, f, residual, residual, scale, jac) for f in forms}
+    jac = jacobian(small, current.cfg, residual)
+    screened = {f: screen(small, current.cfg, f, residual, residual, scale, jac) for f in forms}
     by_family: dict[str, list[str]] = {}
     for f in sorted(forms, key=lambda f: -screened[f]["score"]):
         if screened[f]["score"] >= SCREEN_MIN:
@@ -303,7 +308,9 @@ def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: 
                                 "own_heldout": res["own"].to_json() if res["own"] is not None else None,
                                 "params": {s.key: res["fit"].values.get(s.key) for g in fs for s in FORM_SPECS[g]},
                                 "at_bound": res["fit"].at_bound}
-    stuck = [f for f, r in results.items() if r["rss_abl"] < current.rss * (1 - 1e-3)]
+    cur_small = ctx.small.vector(current.cfg)
+    rss_cur_small = float(cur_small @ cur_small)
+    stuck = [f for f, r in results.items() if r["rss_abl"] < rss_cur_small * (1 - 1e-3)]
     if stuck:
         f = min(stuck, key=lambda f: results[f]["rss_abl"])
         say(f"iteration {it}: a refit found better values of the model's own parameters; re-calibrating")
@@ -333,20 +340,18 @@ def _iteration(ctx: _Context, current: Fit, cur_scores: Scores, named_families: 
         if ok:
             picked.append(g)
         else:
-            fit = calibrate(problem, switch(fit.cfg, g, False), baseline_specs(switch(fit.cfg, g, False)),
+            fit = calibrate(ctx.small, switch(fit.cfg, g, False), baseline_specs(switch(fit.cfg, g, False)),
                             start=dict(fit.values), centre=centre, max_nfev=REFIT_NFEV)
             s_new = ctx.scores(fit.cfg)
             c = ctx.compare(cur_scores, s_new)
     evidence["named"] = picked
-    full = baseline_specs(fit.cfg)
-    if len(picked) == 1 and len(full) > len(_refit_specs(fit.cfg, lead)):
-        # a resistance-side refit kept the length's parameters; polish them all, as the judged
-        # calibration may have bent the geometry to absorb the resistance structure
-        say(f"iteration {it}: polishing every parameter with {FAMILY_OF[lead]}")
-        polished = calibrate(problem, fit.cfg, full, start=dict(fit.values), centre=centre, max_nfev=REFIT_NFEV)
-        if polished.rss < fit.rss:
-            fit, s_new = polished, ctx.scores(polished.cfg)
-            c = ctx.compare(cur_scores, s_new)
+    # polish every parameter on the full subsample (a resistance-side refit kept the length's
+    # parameters, which the judged calibration may have bent to absorb the resistance structure)
+    say(f"iteration {it}: polishing every parameter with {' and '.join(FAMILY_OF[g] for g in picked)}")
+    polished = calibrate(problem, fit.cfg, baseline_specs(fit.cfg), start=dict(fit.values), centre=centre,
+                         max_nfev=REFIT_NFEV)
+    fit, s_new = polished, ctx.scores(polished.cfg)     # never worse than its start on the full subsample
+    c = ctx.compare(cur_scores, s_new)
     return evidence, (picked, fit, s_new, c, form_conf, select), None
 
 
@@ -534,7 +539,7 @@ class _Finisher:
             else:
                 say(f"final model: re-calibrating without {fam} to measure its own part")
                 cfg = switch(current.cfg, form, False)
-                drop = calibrate(ctx.problem, cfg, baseline_specs(cfg), start=dict(current.values), centre=centre,
+                drop = calibrate(ctx.small, cfg, baseline_specs(cfg), start=dict(current.values), centre=centre,
                                  max_nfev=REFIT_NFEV)
                 s_drop = ctx.scores(drop.cfg)
             own = ctx.compare(s_drop, cur_scores)

@@ -178,8 +178,8 @@ def format_report(result: Any, runs: Sequence[Any] = ()) -> str:
             b, a = (tests.get("before") or {}).get(o), (tests.get("after") or {}).get(o)
             u = OUTPUT_UNITS.get(o, "")
             fl = _follows(a if a and a.get("structured") else b)
-            lines.append(f"  {o:<10}  {_structure_cell(b, u):<24} -> {_structure_cell(a, u):<24}"
-                         + (f"  follows {fl}" if fl else ""))
+            lines.append((f"  {o:<10}  {_structure_cell(b, u):<24} -> {_structure_cell(a, u):<24}"
+                          + (f"  follows {fl}" if fl else "")).rstrip())
     lines.append("")
 
     cands = list(getattr(result, "candidates", []) or [])

@@ -4,7 +4,8 @@ Units: as :mod:`tests.analysis.foreign.rig`.
 
 :func:`make` writes one case's run file and returns a :class:`Case` with the truth:
 ``verdict`` ("explained", "named", "unexplained"), the library effects that must be
-named (``causes``, dominant first) and the effect parameters drawn. Magnitudes are
+named (``causes``, dominant first: ordered by the noise-normalised power each effect
+adds to the outputs, computed from the noise-free plant) and the effect parameters drawn. Magnitudes are
 drawn (seeded) in ranges where the effect is clearly above the rig's sensor noise.
 """
 
@@ -108,4 +109,15 @@ def make(name: str, path: str | Path, seed: int = 0, minutes: float = 20.0) -> C
     effects = [e for b in builders for e in b(rig, h, rng)]
     length, res = run_plant(rig, h, effects, seed=2000 + seed)
     p = write(path, h, length, res)
+    if len(causes) > 1:
+        causes = sorted(causes, key=lambda c: -_power(rig, h, effects, c))
     return Case(name, p, verdict, list(causes), effects, len(h))
+
+
+def _power(rig: Rig, h: History, effects: list, family: str) -> float:
+    """Mean squared change of the outputs, in noise variances, that the effects of ``family`` make."""
+    full = run_plant(rig, h, effects, noise=False)
+    rest = run_plant(rig, h, [e for e in effects if e.family != family], noise=False)
+    nl = np.hypot(rig.length_noise_mm, rig.length_step_mm / np.sqrt(12.0))
+    nr = np.hypot(rig.resistance_noise_ohm, rig.resistance_step_ohm / np.sqrt(12.0))
+    return float(np.mean(((full[0] - rest[0]) / nl) ** 2) + np.mean(((full[1] - rest[1]) / nr) ** 2))

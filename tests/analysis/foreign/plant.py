@@ -1,7 +1,8 @@
 """Assemble the independent plant: rig + effects (in stage order) + sensor noise.
 
 Units: as :mod:`tests.analysis.foreign.rig`. Returns the measured length (mm) and
-resistance (ohm, NaN while the heater is on, as a bench would flag it).
+resistance (ohm, NaN while the heater is on, as a bench would flag it); ``noise=False``
+returns the noise-free outputs (NaN nowhere).
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ from tests.analysis.foreign.rig import Rig, resistance_ohm, tsa_length_mm
 from tests.analysis.foreign.walks import History
 
 
-def run_plant(rig: Rig, h: History, effects: list[Effect] = (), seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def run_plant(rig: Rig, h: History, effects: list[Effect] = (), seed: int = 0, noise: bool = True
+              ) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     run = PlantRun(rig, h.t, h.turns.copy(), h.load_g, h.volts, h.moving, h.turns.copy(), h.turns.copy(), rng=rng)
     by_stage = {s: [e for e in effects if e.stage == s] for s in STAGES}
@@ -30,6 +32,8 @@ def run_plant(rig: Rig, h: History, effects: list[Effect] = (), seed: int = 0) -
         e.apply(run)
     for e in by_stage["sensor"]:
         e.apply(run)
+    if not noise:
+        return run.length, run.resistance
     length = run.length + rng.normal(0.0, rig.length_noise_mm, len(h))
     res = run.resistance + rng.normal(0.0, rig.resistance_noise_ohm, len(h))
     if rig.length_step_mm > 0:
