@@ -76,6 +76,7 @@ class Context:
         self.kinds = {k for k, v in hold.kinds.items() if v["train"] + v["heldout"] > 0}
         self.induced: set[str] = set()   # outputs structured only through the joint fit with the other
         self.source: set[str] = set(outputs)   # outputs structured in the judged model (what may be blamed)
+        self.form_bars: dict[str, tuple[float, str]] = {}   # output -> (form spread of a named effect, its name)
 
     def scores(self, cfg: Mapping[str, Any]) -> Scores:
         return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs)

@@ -67,8 +67,8 @@ def eligible(ctx: Context, cfg: Mapping[str, Any], named_families: list[str]) ->
 
 
 def gate(c: Comparison, own_train: float, own: Comparison | None, form_bounds: list[dict],
-          outputs: tuple[str, ...]) -> tuple[bool, str]:
-    """The naming gate (module docstring, step 5)."""
+          outputs: tuple[str, ...], bars: Mapping[str, tuple[float, str]] | None = None) -> tuple[bool, str]:
+    """The naming gate (docs/diagnose.md, step 8)."""
     if form_bounds:
         b = form_bounds[0]
         return False, f"{b['key']} ran to the {b['side']} bound of its range ({b['bound']:.4g})"
@@ -81,6 +81,11 @@ def gate(c: Comparison, own_train: float, own: Comparison | None, form_bounds: l
                       "re-calibration's, not the form's"
     if own is not None and own.ci95["pooled"][0] <= 0:
         return False, "where the form acts on the held-out data, switching it off is not significantly worse"
+    main = max(outputs, key=lambda o: c.improvement[o])
+    bar, earlier = (bars or {}).get(main, (0.0, ""))
+    if c.improvement["pooled"] <= bar:
+        return False, (f"its improvement is within the uncertainty of {earlier}'s form on the {main} (the spread "
+                       f"between that effect's forms, {bar:.3g} noise variances): it may only mop up that form's error")
     for o in outputs:
         if c.p_worse[o] >= HARM_P and -c.improvement[o] >= HARM_REL * c.mse_before[o]:
             return False, (f"makes the {o} held-out error {100 * -c.improvement[o] / c.mse_before[o]:.0f} % worse "
@@ -124,7 +129,7 @@ def _refit(ctx: Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...
     c = ctx.compare(cur_scores, s_new)
     own, own_train = _own(ctx, fit, s_new, abl_cfg, rss_abl)
     bounds = [b for b in fit.at_bound if b["key"].split(".")[0] in forms]
-    ok, why = gate(c, own_train, own, bounds, ctx.outputs)
+    ok, why = gate(c, own_train, own, bounds, ctx.outputs, ctx.form_bars)
     return {"fit": fit, "scores": s_new, "cmp": c, "ok": ok, "why": why, "own_train": own_train, "own": own,
             "abl_cfg": abl_cfg, "rss_abl": rss_abl, "forms": forms}
 
@@ -211,6 +216,13 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     lead = results[best]["forms"][0]
     same = [f for f, r in results.items() if r["forms"][0] != lead and FAMILY_OF[r["forms"][0]] == FAMILY_OF[lead]]
     form_conf = float(np.mean(np.all([draws[best] > draws[f] for f in same], axis=0))) if same else 1.0
+    # how uncertain the named form is: later effects on the same output must beat this spread
+    best_cmp = results[best]["cmp"]
+    main = max(ctx.outputs, key=lambda o: best_cmp.improvement[o])
+    spread = best_cmp.improvement["pooled"] - max([results[f]["cmp"].improvement["pooled"] for f in same], default=
+                                                  best_cmp.improvement["pooled"])
+    if spread > ctx.form_bars.get(main, (0.0, ""))[0]:
+        ctx.form_bars[main] = (spread, FAMILY_OF[lead])
     r = results[best]
     fit, s_new, c = r["fit"], r["scores"], r["cmp"]
     picked = [lead]
