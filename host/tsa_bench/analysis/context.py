@@ -46,6 +46,9 @@ N_BOOT = 1000
 HARM_P = 0.5
 HARM_REL = 0.1
 UNITS = {"length": "mm", "resistance": "ohm"}
+#: effects on the resistance alone are not candidates while the length error, through dR/dX,
+#: explains at least this share of the resistance residual's structure
+PROPAGATED = 0.5
 Progress = Callable[[str], None]
 
 

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from tsa_bench.analysis.calibrate import Fit, Problem, calibrate
-from tsa_bench.analysis.context import (COMPANIONS, CONTENDER, FLOOR, HARM_P, HARM_REL, REFIT_MAX, REFIT_NFEV,
-                                        SCREEN_MIN, Context, Progress, run_scale)
+from tsa_bench.analysis.context import (COMPANIONS, CONTENDER, FLOOR, HARM_P, HARM_REL, PROPAGATED, REFIT_MAX,
+                                        REFIT_NFEV, SCREEN_MIN, Context, Progress, run_scale)
 from tsa_bench.analysis.families import FAMILIES, FAMILY_OF, FORM_SPECS, NEEDS, OUTPUT_OF
 from tsa_bench.analysis.modelspec import baseline_specs, enabled_effects, get_value, switch
 from tsa_bench.analysis.scoring import Comparison, Scores
@@ -42,17 +42,50 @@ def induced(ctx: Context, fit0: Fit, structured: list[str], centre: dict, say: P
     return out if len(out) < len(structured) else set()
 
 
-def _blamable(ctx: Context, fam: str, on: set[str]) -> bool:
+def _blamable(ctx: Context, fam: str, on: set[str], propagated: bool = False) -> bool:
     """Whether the output ``fam`` acts on (length effects also through dR/dX) was structured in
-    the judged model on its own account: a later cause must never just repair what an earlier
-    one did to an output that was fine."""
+    the judged model on its own account (a later cause must never just repair what an earlier
+    one did to an output that was fine) and, for effects on the resistance alone, whether its
+    structure now is more than the length error showing through dR/dX (``propagated``)."""
     acts = OUTPUT_OF[fam]
     if acts not in ctx.outputs:
         acts = "resistance" if acts == "length" and "resistance_length" in on else ""
+    if acts == "resistance" and OUTPUT_OF[fam] == "resistance" and propagated:
+        return False
     return acts in ctx.source and acts not in ctx.induced
 
 
-def eligible(ctx: Context, cfg: Mapping[str, Any], named_families: list[str]) -> list[str]:
+def propagated_share(ctx: Context, scores: Scores, cfg: Mapping[str, Any]) -> float:
+    """Share of the resistance residual's slow structure that the length residual explains
+    through one coefficient (the model's resistance follows its length: a length error shows in
+    the resistance as dR/dX times itself). Window means (the structure test's windows) keep the
+    regressor's noise from hiding the relation."""
+    if not {"length", "resistance"} <= set(ctx.outputs):
+        return 0.0
+    w = int(max(5, min(200, round(2.0 * ctx.rate))))
+    el, er = [], []
+    for r, sim in zip(ctx.inputs, scores.sims):
+        dl, dr = sim["length"] - r.length, sim["resistance"] - r.resistance
+        ok = np.isfinite(dl) & np.isfinite(dr) & r.scored
+        m = int(ok.sum()) // w
+        if m:
+            el.append(dl[ok][: m * w].reshape(m, w).mean(axis=1))
+            er.append(dr[ok][: m * w].reshape(m, w).mean(axis=1))
+    if not el:
+        return 0.0
+    x, y = np.concatenate(el), np.concatenate(er)
+    x0, y0 = x - x.mean(), y - y.mean()
+    sxx = float(x0 @ x0)
+    noise_r = ctx.noise["resistance"].rms ** 2 / w
+    structured = float(np.mean(y0 * y0)) - noise_r
+    if sxx <= 0 or structured <= 0:
+        return 0.0
+    explained = float((x0 @ y0) ** 2 / sxx) / len(y0)
+    return min(1.0, explained / structured)
+
+
+def eligible(ctx: Context, cfg: Mapping[str, Any], named_families: list[str], propagated: bool = False
+             ) -> list[str]:
     on = set(enabled_effects(cfg))
     out = []
     for fam, forms in FAMILIES.items():
@@ -60,14 +93,15 @@ def eligible(ctx: Context, cfg: Mapping[str, Any], named_families: list[str]) ->
             continue
         if not any(k in ctx.kinds for k in NEEDS.get(fam, ())):
             continue
-        if not _blamable(ctx, fam, on):
+        if not _blamable(ctx, fam, on, propagated):
             continue
         out += list(forms)
     return out
 
 
 def gate(c: Comparison, own_train: float, own: Comparison | None, form_bounds: list[dict],
-          outputs: tuple[str, ...], bars: Mapping[str, tuple[float, str]] | None = None) -> tuple[bool, str]:
+          outputs: tuple[str, ...], bars: Mapping[str, tuple[float, str]] | None = None, acts: str = "length"
+          ) -> tuple[bool, str]:
     """The naming gate (docs/diagnose.md, step 8)."""
     if form_bounds:
         b = form_bounds[0]
@@ -81,9 +115,9 @@ def gate(c: Comparison, own_train: float, own: Comparison | None, form_bounds: l
                       "re-calibration's, not the form's"
     if own is not None and own.ci95["pooled"][0] <= 0:
         return False, "where the form acts on the held-out data, switching it off is not significantly worse"
-    main = max(outputs, key=lambda o: c.improvement[o])
+    main = acts if acts in outputs else max(outputs, key=lambda o: c.improvement[o])
     bar, earlier = (bars or {}).get(main, (0.0, ""))
-    if c.improvement["pooled"] <= bar:
+    if c.improvement[main] <= bar:
         return False, (f"its improvement is within the uncertainty of {earlier}'s form on the {main} (the spread "
                        f"between that effect's forms, {bar:.3g} noise variances): it may only mop up that form's error")
     for o in outputs:
@@ -129,7 +163,7 @@ def _refit(ctx: Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...
     c = ctx.compare(cur_scores, s_new)
     own, own_train = _own(ctx, fit, s_new, abl_cfg, rss_abl)
     bounds = [b for b in fit.at_bound if b["key"].split(".")[0] in forms]
-    ok, why = gate(c, own_train, own, bounds, ctx.outputs, ctx.form_bars)
+    ok, why = gate(c, own_train, own, bounds, ctx.outputs, ctx.form_bars, OUTPUT_OF[FAMILY_OF[forms[0]]])
     return {"fit": fit, "scores": s_new, "cmp": c, "ok": ok, "why": why, "own_train": own_train, "own": own,
             "abl_cfg": abl_cfg, "rss_abl": rss_abl, "forms": forms}
 
@@ -158,7 +192,8 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     small = ctx.small
     residual = stacked(small.residuals(current.cfg), ctx.outputs)
     scale = run_scale(ctx, current.cfg)
-    forms = eligible(ctx, current.cfg, named_families)
+    share = propagated_share(ctx, cur_scores, current.cfg)
+    forms = eligible(ctx, current.cfg, named_families, share >= PROPAGATED)
     say(f"iteration {it}: screening {len(forms)} candidate forms")
     jac = jacobian(small, current.cfg, residual)
     screened = {f: screen(small, current.cfg, f, residual, residual, scale, jac) for f in forms}
@@ -174,7 +209,7 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     for fam in fam_rank[1:]:
         if len(to_refit) < REFIT_MAX and screened[by_family[fam][0]]["score"] >= CONTENDER * top:
             to_refit.append(by_family[fam][0])
-    evidence: dict = {"iteration": it, "screened": {f: {"family": FAMILY_OF[f], **screened[f]} for f in forms},
+    evidence: dict = {"iteration": it, "resistance_structure_from_length": share, "screened": {f: {"family": FAMILY_OF[f], **screened[f]} for f in forms},
                       "refit": {}, "named": None}
     jobs = [(f,) for f in to_refit]
     for f in to_refit:
@@ -216,13 +251,15 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     lead = results[best]["forms"][0]
     same = [f for f, r in results.items() if r["forms"][0] != lead and FAMILY_OF[r["forms"][0]] == FAMILY_OF[lead]]
     form_conf = float(np.mean(np.all([draws[best] > draws[f] for f in same], axis=0))) if same else 1.0
-    # how uncertain the named form is: later effects on the same output must beat this spread
+    # how much the named effect's shape matters on the output it acts on: a later effect
+    # acting there must beat this spread between its forms
     best_cmp = results[best]["cmp"]
-    main = max(ctx.outputs, key=lambda o: best_cmp.improvement[o])
-    spread = best_cmp.improvement["pooled"] - max([results[f]["cmp"].improvement["pooled"] for f in same], default=
-                                                  best_cmp.improvement["pooled"])
-    if spread > ctx.form_bars.get(main, (0.0, ""))[0]:
-        ctx.form_bars[main] = (spread, FAMILY_OF[lead])
+    for o in ctx.outputs:
+        if o != OUTPUT_OF[FAMILY_OF[lead]] or best_cmp.improvement[o] <= 0 or not same:
+            continue
+        spread = best_cmp.improvement[o] - max(results[f]["cmp"].improvement[o] for f in same)
+        if spread > ctx.form_bars.get(o, (0.0, ""))[0]:
+            ctx.form_bars[o] = (spread, FAMILY_OF[lead])
     r = results[best]
     fit, s_new, c = r["fit"], r["scores"], r["cmp"]
     picked = [lead]
