@@ -94,8 +94,9 @@ def _structure_cell(t: Mapping | None, units: str) -> str:
         return "-"
     if not t.get("testable", True):
         return "not testable"
-    word = "STRUCTURED" if t.get("structured") else "noise"
-    return f"{word} {_num(t.get('structured_rms'), 3)} {units}"
+    if t.get("structured"):
+        return f"STRUCTURED {_num(t.get('structured_rms'), 3)} {units}"
+    return f"noise (RMS {_num(t.get('rms'), 3)} {units})"
 
 
 def _follows(t: Mapping | None) -> str:
@@ -173,26 +174,28 @@ def format_report(result: Any, runs: Sequence[Any] = ()) -> str:
                          f"{_num(g.heldout_rmse_after) + ' ' + u:>13}  {_pct(g.relative):>9}")
     tests = getattr(result, "residual_tests", {}) or {}
     if tests:
-        lines.append("Residual structure, judged -> final model (follows: share of the structure):")
+        lines.append("Residual structure, judged -> final model (structured RMS; follows: share of it):")
         for o in outputs:
             b, a = (tests.get("before") or {}).get(o), (tests.get("after") or {}).get(o)
             u = OUTPUT_UNITS.get(o, "")
-            fl = _follows(a if a and a.get("structured") else b)
-            lines.append((f"  {o:<10}  {_structure_cell(b, u):<24} -> {_structure_cell(a, u):<24}"
-                          + (f"  follows {fl}" if fl else "")).rstrip())
+            fb, fa = _follows(b), _follows(a)
+            cell_b = _structure_cell(b, u) + (f" (follows {fb})" if fb and fb != fa else "")
+            lines.append((f"  {o:<10}  {cell_b} -> {_structure_cell(a, u)}" + (f" (follows {fa})" if fa else "")
+                          ).rstrip())
     lines.append("")
 
     cands = list(getattr(result, "candidates", []) or [])
     if cands:
         best: dict[str, Any] = {}
+        named_variants = {c.variant for c in named}
         for c in cands:
             fam = (c.evidence or {}).get("family", c.name)
             refit = (c.evidence or {}).get("refit")
-            key = (refit is not None, c.score)
+            key = (c.name in named_variants, refit is not None and bool(refit.get("passed")), refit is not None, c.score)
             if fam not in best or key > best[fam][0]:
                 best[fam] = (key, c)
         lines.append("Candidate effects (best form; screen = share of the residual its signature explains):")
-        for fam, (_, c) in sorted(best.items(), key=lambda kv: (-int(kv[1][0][0]), -kv[1][0][1])):
+        for fam, (_, c) in sorted(best.items(), key=lambda kv: tuple(-float(k) for k in kv[1][0])):
             ev = c.evidence or {}
             refit = ev.get("refit")
             tail = ""
