@@ -22,6 +22,7 @@ from tsa_bench.analysis.context import (COMPANIONS, CONTENDER, FLOOR, HARM_P, HA
                                         REFIT_NFEV, SCREEN_MIN, Context, Progress, run_scale)
 from tsa_bench.analysis.families import FAMILIES, FAMILY_OF, FORM_SPECS, NEEDS, OUTPUT_OF
 from tsa_bench.analysis.modelspec import baseline_specs, enabled_effects, get_value, switch
+from tsa_bench.analysis.noise import window_length
 from tsa_bench.analysis.scoring import Comparison, Scores
 from tsa_bench.analysis.screening import jacobian, screen, stacked
 
@@ -62,7 +63,7 @@ def propagated_share(ctx: Context, scores: Scores, cfg: Mapping[str, Any]) -> fl
     regressor's noise from hiding the relation."""
     if not {"length", "resistance"} <= set(ctx.outputs):
         return 0.0
-    w = int(max(5, min(200, round(2.0 * ctx.rate))))
+    w = window_length(ctx.rate)
     el, er = [], []
     for r, sim in zip(ctx.inputs, scores.sims):
         dl, dr = sim["length"] - r.length, sim["resistance"] - r.resistance
@@ -76,7 +77,7 @@ def propagated_share(ctx: Context, scores: Scores, cfg: Mapping[str, Any]) -> fl
     x, y = np.concatenate(el), np.concatenate(er)
     x0, y0 = x - x.mean(), y - y.mean()
     sxx = float(x0 @ x0)
-    noise_r = ctx.noise["resistance"].rms ** 2 / w
+    noise_r = ctx.noise["resistance"].inflation * ctx.noise["resistance"].rms ** 2 / w
     structured = float(np.mean(y0 * y0)) - noise_r
     if sxx <= 0 or structured <= 0:
         return 0.0

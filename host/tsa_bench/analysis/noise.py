@@ -7,7 +7,11 @@ commanded to change (motor still, heater and load constant, at least 1 s into th
 pause): the quantisation step ``step`` (when the readings sit on a lattice), the white
 noise standard deviation ``sigma`` from a trimmed variance of first differences (robust
 to the odd jump and to slow drifts, which barely move a first difference), and the
-noise-model RMS ``rms = max(sigma, step / sqrt(12))``. ``floor`` =
+noise-model RMS ``rms = max(sigma, step / sqrt(12), marginal)``. Correlated (coloured) noise
+is seen in the settled second halves of quiet stretches, each detrended by a straight line:
+their mean square is the ``marginal`` variance, and ``inflation`` is how much larger the
+variance of a window mean is than the within-window variance over the window length (1 for
+white noise; the structure test expects that much from noise alone). ``floor`` =
 :data:`RELEVANT` x ``rms`` is the smallest structure worth a verdict: a systematic error
 smaller than half the per-sample noise is not called structure, however many samples
 make it statistically detectable (see docs/diagnose.md).
@@ -32,6 +36,7 @@ class Noise:
     rms: float
     n: int
     bias_var: float = 0.0   # variance of the rounding bias that stays put while the signal does
+    inflation: float = 1.0  # variance of a window mean over (within-window variance / w): 1 for white noise
 
 
     @property
@@ -40,7 +45,8 @@ class Noise:
 
     def to_json(self) -> dict:
         return {"sigma": self.sigma, "quantisation_step": self.step, "rms": self.rms, "relevance_floor": self.floor,
-                "rounding_bias_rms": float(np.sqrt(self.bias_var)), "n_differences": self.n}
+                "rounding_bias_rms": float(np.sqrt(self.bias_var)), "window_inflation": self.inflation,
+                "n_differences": self.n}
 
 
 def quiet_mask(r: RunInputs, settle_s: float = 1.0) -> np.ndarray:
@@ -78,6 +84,40 @@ def lattice_step(x: np.ndarray) -> float:
     return float(np.median(small)) if len(small) else q
 
 
+def window_length(rate_hz: float) -> int:
+    """Samples per window of the structure test (about 2 s)."""
+    return int(max(5, min(200, round(2.0 * rate_hz))))
+
+
+def _colour(runs: list[RunInputs], output: str, w: int) -> tuple[float, float, int]:
+    """(marginal variance, window inflation, windows used) of the noise from the settled second
+    halves of quiet stretches, each detrended by a straight line (slow signal removed)."""
+    det, means, within = [], [], []
+    for r in runs:
+        x = r.output(output)
+        q = quiet_mask(r) & np.isfinite(x)
+        d = np.diff(np.r_[0, q.astype(np.int8), 0])
+        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+            a = (a + b) // 2
+            if b - a < 4 * w:
+                continue
+            y = x[a:b]
+            k = np.arange(len(y), dtype=float)
+            y = y - np.polyval(np.polyfit(k, y, 1), k)
+            det.append(y)
+            m = len(y) // w
+            blocks = y[: m * w].reshape(m, w)
+            means.append(blocks.mean(axis=1))
+            within.append(blocks.var(axis=1, ddof=1))
+    if not det:
+        return 0.0, 1.0, 0
+    allm, allw = np.concatenate(means), np.concatenate(within)
+    y = np.concatenate(det)
+    marginal = float(np.mean(y * y))
+    inflation = float(w * np.mean(allm * allm) / np.mean(allw)) if np.mean(allw) > 0 else 1.0
+    return marginal, max(1.0, inflation), len(allm)
+
+
 def noise_model(runs: list[RunInputs], output: str) -> Noise:
     diffs = []
     steps = []
@@ -103,8 +143,12 @@ def noise_model(runs: list[RunInputs], output: str) -> Noise:
     sigma = float(np.sqrt(np.mean(d2[:keep]) / 0.856 / var_factor))
     # dithered readings (sigma >~ step/2): the differences already hold the step's share;
     # coarse steps: the error is the rounding itself, RMS step/sqrt(12)
-    rms = float(np.sqrt(max(sigma * sigma, step * step / 12.0)))
-    return Noise(sigma, step, max(rms, 1e-12), len(d), rounding_bias_var(sigma, step))
+    rate = float(np.median([r.rate_hz for r in runs]))
+    marginal, inflation, windows = _colour(runs, output, window_length(rate))
+    if windows < 20:   # too little quiet data to see the noise's colour: white
+        marginal, inflation = 0.0, 1.0
+    rms = float(np.sqrt(max(sigma * sigma, step * step / 12.0, marginal)))
+    return Noise(sigma, step, max(rms, 1e-12), len(d), rounding_bias_var(sigma, step), inflation)
 
 
 def _bias_var(s: float, q: float) -> float:

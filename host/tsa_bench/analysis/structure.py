@@ -4,9 +4,10 @@ Units: residuals in the output's units; noise from :mod:`tsa_bench.analysis.nois
 
 Contract: :func:`structure_test` compares a residual with the data's noise model. The
 residual is cut into contiguous windows of ``w`` samples (about 2 s); if it were the
-noise alone, the mean square of the window means would be ``s_w^2 / w`` (``s_w^2`` the
-within-window variance) plus the rounding bias the noise model predicts, and
-``F = w * mean(m_j^2) / s_w^2`` would follow an F(J, J(w-1)) law (J windows). The
+noise alone, the mean square of the window means would be ``k s_w^2 / w`` (``s_w^2`` the
+within-window variance, ``k`` the noise model's window inflation, 1 for white noise) plus
+the rounding bias the noise model predicts, and ``F = w * mean(m_j^2) / (k s_w^2)`` would
+follow about an F(J, J(w-1)) law (J windows). The
 structured RMS ``S = sqrt(mean(m_j^2) - s_w^2 / w - bias)`` estimates the part that is
 not noise. The residual is **structured** when p < :data:`ALPHA` **and** S is at least the
 noise model's relevance floor (half its RMS). :func:`follows` regresses the residual on
@@ -22,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2, f as fdist
 
-from tsa_bench.analysis.noise import Noise
+from tsa_bench.analysis.noise import Noise, window_length
 
 ALPHA = 0.01
 SHARE_MIN = 0.2
@@ -41,7 +42,7 @@ def structure_test(res: np.ndarray, noise: Noise, rate_hz: float, bases: dict[st
     """{structured, testable, p, structured_rms, rms, excess_rms, follows, n, window}; see the module docstring."""
     ok = np.isfinite(res)
     n = int(ok.sum())
-    w = int(max(5, min(200, round(2.0 * rate_hz))))
+    w = window_length(rate_hz)
     if n < 4 * w or not np.isfinite(noise.rms):
         return {"structured": False, "testable": False, "p": None, "structured_rms": None, "follows": [],
                 "rms": float(np.sqrt(np.mean(res[ok] ** 2))) if n else None, "n": n, "window": w}
@@ -49,9 +50,9 @@ def structure_test(res: np.ndarray, noise: Noise, rate_hz: float, bases: dict[st
     s_w2 = float(np.mean(within))
     ms = float(np.mean(means ** 2))
     j = len(means)
-    fstat = w * ms / max(s_w2, 1e-300)
+    fstat = w * ms / max(noise.inflation * s_w2, 1e-300)
     p = float(fdist.sf(fstat, j, j * (w - 1)))
-    s_rms = float(np.sqrt(max(ms - s_w2 / w - noise.bias_var, 0.0)))
+    s_rms = float(np.sqrt(max(ms - noise.inflation * s_w2 / w - noise.bias_var, 0.0)))
     slow = bool(p < ALPHA and s_rms >= noise.floor)
     signals = _signal_fits(res, bases or {})
     fast = [f for f in signals if f["p"] < ALPHA and f["rms"] >= noise.floor]

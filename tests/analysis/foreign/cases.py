@@ -100,10 +100,11 @@ CASES: dict[str, tuple[str, tuple[Builder, ...], str, tuple[str, ...]]] = {
 }
 
 
-def make(name: str, path: str | Path, seed: int = 0, minutes: float = 20.0) -> Case:
-    """Write case ``name`` (walk and magnitudes from ``seed``) to ``path``."""
+def make(name: str, path: str | Path, seed: int = 0, minutes: float = 20.0, noise_ar: float = 0.0) -> Case:
+    """Write case ``name`` (walk and magnitudes from ``seed``) to ``path``; ``noise_ar``
+    correlates the sensor noise (AR(1) coefficient)."""
     rig_name, builders, verdict, causes = CASES[name]
-    rig = RIGS[rig_name]
+    rig = RIGS[rig_name].with_(noise_ar=noise_ar)
     h = random_walk(rig, seed, minutes)
     rng = np.random.default_rng(1000 + seed)
     effects = [e for b in builders for e in b(rig, h, rng)]

@@ -14,6 +14,16 @@ from tests.analysis.foreign.rig import Rig, resistance_ohm, tsa_length_mm
 from tests.analysis.foreign.walks import History
 
 
+def _noise(rng: np.random.Generator, sd: float, ar: float, n: int) -> np.ndarray:
+    """Gaussian noise of standard deviation ``sd``, AR(1)-correlated with coefficient ``ar``."""
+    e = rng.normal(0.0, sd * np.sqrt(1.0 - ar * ar), n)
+    if ar:
+        from scipy.signal import lfilter
+        e = lfilter([1.0], [1.0, -ar], e)
+        e[0] = rng.normal(0.0, sd)
+    return e
+
+
 def run_plant(rig: Rig, h: History, effects: list[Effect] = (), seed: int = 0, noise: bool = True
               ) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
@@ -34,8 +44,8 @@ def run_plant(rig: Rig, h: History, effects: list[Effect] = (), seed: int = 0, n
         e.apply(run)
     if not noise:
         return run.length, run.resistance
-    length = run.length + rng.normal(0.0, rig.length_noise_mm, len(h))
-    res = run.resistance + rng.normal(0.0, rig.resistance_noise_ohm, len(h))
+    length = run.length + _noise(rng, rig.length_noise_mm, rig.noise_ar, len(h))
+    res = run.resistance + _noise(rng, rig.resistance_noise_ohm, rig.noise_ar, len(h))
     if rig.length_step_mm > 0:
         length = np.round(length / rig.length_step_mm) * rig.length_step_mm
     if rig.resistance_step_ohm > 0:

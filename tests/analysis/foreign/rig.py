@@ -40,6 +40,7 @@ class Rig:
     length_step_mm: float = 0.0       # position quantisation (0: none)
     resistance_step_ohm: float = 0.0  # resistance quantisation (0: none)
     reach: float = 0.8                # the walk reaches this fraction of the full twist
+    noise_ar: float = 0.0             # lag-1 correlation of the sensor noise (0: white)
 
     def with_(self, **kw) -> "Rig":
         return replace(self, **kw)
