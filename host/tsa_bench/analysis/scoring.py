@@ -44,8 +44,11 @@ class Scores:
                 for j, o in enumerate(self.outputs)}
 
 
-def all_units(runs: list[RunInputs]) -> list[tuple[int, np.ndarray]]:
-    return [(i, u) for i, r in enumerate(runs) for u in units(r)]
+def all_units(runs: list[RunInputs], target: int = 24) -> list[tuple[int, np.ndarray]]:
+    """Resampling units of every run's held-out part, about ``target`` in all (at least 20 s each)."""
+    spans = sum(int(np.sum(np.diff(np.r_[0, r.heldout.astype(np.int8)]) == 1)) for r in runs)
+    per_block = int(min(target, max(4, target // max(spans, 1))))
+    return [(i, u) for i, r in enumerate(runs) for u in units(r, per_block=per_block)]
 
 
 def unit_scores(cfg: Mapping[str, Any], runs: list[RunInputs], unit_list: list[tuple[int, np.ndarray]],
