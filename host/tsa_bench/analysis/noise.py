@@ -7,11 +7,13 @@ commanded to change (motor still, heater and load constant, at least 1 s into th
 pause): the quantisation step ``step`` (when the readings sit on a lattice), the white
 noise standard deviation ``sigma`` from a trimmed variance of first differences (robust
 to the odd jump and to slow drifts, which barely move a first difference), and the
-noise-model RMS ``rms = max(sigma, step / sqrt(12), marginal)``. Correlated (coloured) noise
-is seen in the settled second halves of quiet stretches, each detrended by a straight line:
-their mean square is the ``marginal`` variance, and ``inflation`` is how much larger the
-variance of a window mean is than the within-window variance over the window length (1 for
-white noise; the structure test expects that much from noise alone). ``floor`` =
+noise-model RMS ``rms = max(marginal, step / sqrt(12))``. The noise may be correlated: an
+AR(1) coefficient ``phi`` follows from the lag-1 correlation of consecutive quiet first
+differences (-(1 - phi)/2; -1/2 for white noise; slow signal in the holds barely moves a
+difference, so it does not pass for noise), the ``marginal`` variance is
+``sigma^2 / (1 - phi)`` and ``inflation`` how much larger the variance of a window mean is
+than the within-window variance over the window length (1 for white noise): the
+structure test expects that much from noise alone. ``floor`` =
 :data:`RELEVANT` x ``rms`` is the smallest structure worth a verdict: a systematic error
 smaller than half the per-sample noise is not called structure, however many samples
 make it statistically detectable (see docs/diagnose.md).
@@ -37,6 +39,7 @@ class Noise:
     n: int
     bias_var: float = 0.0   # variance of the rounding bias that stays put while the signal does
     inflation: float = 1.0  # variance of a window mean over (within-window variance / w): 1 for white noise
+    phi: float = 0.0        # AR(1) coefficient of the noise
 
 
     @property
@@ -45,7 +48,7 @@ class Noise:
 
     def to_json(self) -> dict:
         return {"sigma": self.sigma, "quantisation_step": self.step, "rms": self.rms, "relevance_floor": self.floor,
-                "rounding_bias_rms": float(np.sqrt(self.bias_var)), "window_inflation": self.inflation,
+                "rounding_bias_rms": float(np.sqrt(self.bias_var)), "window_inflation": self.inflation, "ar1": self.phi,
                 "n_differences": self.n}
 
 
@@ -89,33 +92,35 @@ def window_length(rate_hz: float) -> int:
     return int(max(5, min(200, round(2.0 * rate_hz))))
 
 
-def _colour(runs: list[RunInputs], output: str, w: int) -> tuple[float, float, int]:
-    """(marginal variance, window inflation, windows used) of the noise from the settled second
-    halves of quiet stretches, each detrended by a straight line (slow signal removed)."""
-    det, means, within = [], [], []
+def _lag1_of_differences(runs: list[RunInputs], output: str) -> tuple[float, int]:
+    """Lag-1 correlation of consecutive first differences on quiet samples (trimmed of the
+    largest 2 %), and the number of pairs; -0.5 for white noise."""
+    pairs = []
     for r in runs:
         x = r.output(output)
         q = quiet_mask(r) & np.isfinite(x)
-        d = np.diff(np.r_[0, q.astype(np.int8), 0])
-        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
-            a = (a + b) // 2
-            if b - a < 4 * w:
-                continue
-            y = x[a:b]
-            k = np.arange(len(y), dtype=float)
-            y = y - np.polyval(np.polyfit(k, y, 1), k)
-            det.append(y)
-            m = len(y) // w
-            blocks = y[: m * w].reshape(m, w)
-            means.append(blocks.mean(axis=1))
-            within.append(blocks.var(axis=1, ddof=1))
-    if not det:
-        return 0.0, 1.0, 0
-    allm, allw = np.concatenate(means), np.concatenate(within)
-    y = np.concatenate(det)
-    marginal = float(np.mean(y * y))
-    inflation = float(w * np.mean(allm * allm) / np.mean(allw)) if np.mean(allw) > 0 else 1.0
-    return marginal, max(1.0, inflation), len(allm)
+        d = np.diff(x)
+        ok = q[2:] & q[1:-1] & q[:-2]
+        a, b = d[:-1][ok], d[1:][ok]
+        pairs.append(np.column_stack([a, b]))
+    p = np.concatenate(pairs) if pairs else np.zeros((0, 2))
+    if len(p) < 50:
+        return -0.5, len(p)
+    big = np.abs(p).max(axis=1)
+    p = p[big <= np.quantile(big, 0.98)]
+    sa, sb = np.std(p[:, 0]), np.std(p[:, 1])
+    if sa == 0 or sb == 0:
+        return -0.5, len(p)
+    return float(np.corrcoef(p[:, 0], p[:, 1])[0, 1]), len(p)
+
+
+def ar1_inflation(phi: float, w: int) -> float:
+    """``w var(window mean) / E[within-window variance]`` for AR(1) noise of coefficient ``phi``."""
+    k = np.arange(1, w)
+    s = w + 2.0 * np.sum((w - k) * phi ** k)      # sum over i, j of phi^|i-j|
+    var_mean = s / (w * w)                        # in units of the marginal variance
+    within = w / (w - 1.0) * (1.0 - var_mean)
+    return float(w * var_mean / max(within, 1e-12))
 
 
 def noise_model(runs: list[RunInputs], output: str) -> Noise:
@@ -144,11 +149,13 @@ def noise_model(runs: list[RunInputs], output: str) -> Noise:
     # dithered readings (sigma >~ step/2): the differences already hold the step's share;
     # coarse steps: the error is the rounding itself, RMS step/sqrt(12)
     rate = float(np.median([r.rate_hz for r in runs]))
-    marginal, inflation, windows = _colour(runs, output, window_length(rate))
-    if windows < 20:   # too little quiet data to see the noise's colour: white
-        marginal, inflation = 0.0, 1.0
-    rms = float(np.sqrt(max(sigma * sigma, step * step / 12.0, marginal)))
-    return Noise(sigma, step, max(rms, 1e-12), len(d), rounding_bias_var(sigma, step), inflation)
+    rho, _ = _lag1_of_differences(runs, output)
+    # AR(1) noise: corr(d_k, d_k+1) = -(1 - phi) / 2 and var(d) = 2 sigma^2 (1 - phi); white: phi = 0
+    phi = float(np.clip(1.0 + 2.0 * rho, 0.0, 0.95))
+    marginal = sigma * sigma / (1.0 - phi)
+    inflation = ar1_inflation(phi, window_length(rate)) if phi > 0 else 1.0
+    rms = float(np.sqrt(max(marginal, step * step / 12.0)))
+    return Noise(sigma, step, max(rms, 1e-12), len(d), rounding_bias_var(sigma, step), inflation, phi)
 
 
 def _bias_var(s: float, q: float) -> float:
