@@ -109,9 +109,12 @@ def run_scale(ctx: Context, cfg: Mapping[str, Any]) -> RunScale:
     x = static_length(l0, r0, k, tw[sel], ld[sel], "string_compliance" in on, "radius_growth" in on)
     r2 = r0 * r0 * (l0 / x if "radius_growth" in on else 1.0)
     torque = ld[sel] * NEWTON_PER_GRAM * 2 * np.pi * np.abs(tw[sel]) * r2 / x * 1e-3
-    speed = [np.max(np.abs(np.diff(r.turns)) / np.maximum(np.diff(r.t), 1e-9), initial=0.0) for r in ctx.inputs]
+    speeds = np.concatenate([(np.abs(np.diff(r.turns)) / np.maximum(np.diff(r.t), 1e-9))[r.moving[1:]]
+                             for r in ctx.inputs])
+    speed = [float(np.max(speeds, initial=0.0))]
+    typical = float(np.median(speeds[speeds > 0])) if np.any(speeds > 0) else 1.0
     res_level = get_value(cfg, "geometry.resistance_ohm")
-    return RunScale(float(np.max(np.abs(tw))), float(np.max(torque, initial=0.0)), float(max(speed)),
+    return RunScale(float(np.max(np.abs(tw))), float(np.max(torque, initial=0.0)), float(max(speed)), typical,
                     float(sum(r.duration_s for r in ctx.inputs)), res_level,
                     ctx.noise["resistance"].rms if "resistance" in ctx.outputs else 1e-3)
 

@@ -54,7 +54,8 @@ def _s(key, lo, hi, log=False, hard_lo=False, hard_hi=False):
 FORM_SPECS: dict[str, tuple[ParamSpec, ...]] = {
     "missed_steps": (_s("missed_steps.holding_torque_Nm", 1e-6, 2.0, True),),
     "missed_steps_pullout": (_s("missed_steps_pullout.pullout_torque_Nm", 1e-6, 2.0, True),
-                             _s("missed_steps_pullout.corner_speed_turns_per_s", 0.02, 100.0, True)),
+                             _s("missed_steps_pullout.corner_speed_turns_per_s", 0.02, 100.0, True),
+                             _s("missed_steps_pullout.slip_exponent", 0.3, 100.0, True, hard_hi=True)),
     "missed_steps_saturating": (_s("missed_steps_saturating.threshold_turns", 0.0, 400.0, hard_lo=True),
                                 _s("missed_steps_saturating.slip_fraction", 0.0, 1.0, hard_lo=True, hard_hi=True)),
     "thermal_dynamics": (_s("thermal_dynamics.thermal_resistance_K_per_W", 0.1, 200.0, True),
@@ -91,6 +92,7 @@ class RunScale:
     max_turns: float            # largest |twist| commanded
     max_torque_Nm: float        # largest load torque the calibrated model predicts
     max_speed_turns_per_s: float
+    typical_speed_turns_per_s: float   # median commanded speed while moving
     duration_s: float
     resistance_ohm: float       # typical resistance level
     resistance_noise_ohm: float
@@ -103,9 +105,9 @@ def screen_params(form: str, sc: RunScale) -> list[dict[str, float]]:
     if form == "missed_steps":
         return [{"holding_torque_Nm": tq * q} for q in (0.5, 0.7, 0.85, 0.95)]
     if form == "missed_steps_pullout":
-        w = max(sc.max_speed_turns_per_s, 0.1)
-        return [{"pullout_torque_Nm": tq * q * (1 + w / wc), "corner_speed_turns_per_s": wc}
-                for q in (0.7, 0.9) for wc in (0.5 * w, 2.0 * w)]
+        w = max(sc.typical_speed_turns_per_s, 0.1)
+        return [{"pullout_torque_Nm": tq * q * (1 + w / wc), "corner_speed_turns_per_s": wc, "slip_exponent": n}
+                for q in (0.5, 0.8) for wc in (0.5 * w, 2.0 * w) for n in (2.0, 20.0)]
     if form == "missed_steps_saturating":
         return [{"threshold_turns": tw * q, "slip_fraction": 0.3} for q in (0.4, 0.6, 0.8)]
     if form == "thermal_dynamics":

@@ -230,7 +230,8 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     fam_rank = sorted(by_family, key=lambda fam: -screened[by_family[fam][0]]["score"])
     # every form of the leading family (the form is decided on held-out data, not by the
     # screen), then the best form of each next family
-    to_refit: list[str] = list(by_family[fam_rank[0]]) if fam_rank else []
+    to_refit: list[str] = [f for f in FAMILIES[fam_rank[0]] if f in screened] if fam_rank else []
+    to_refit.sort(key=lambda f: -screened[f]["score"])
     top = screened[to_refit[0]]["score"] if to_refit else 0.0
     for fam in fam_rank[1:]:
         if len(to_refit) < REFIT_MAX and screened[by_family[fam][0]]["score"] >= CONTENDER * top:

@@ -19,15 +19,17 @@ from tsa_bench.sim.effects.motor import load_torque_Nm
 
 @register_form
 class MissedStepsPullout(Effect):
-    """The stepper's pull-out torque falls with speed, ``T_po = T0 / (1 + w / w_c)``; twist
-    stops where the load torque reaches it.
+    """The stepper's pull-out torque falls with speed, ``T_po = T0 / (1 + w / w_c)``; beyond it
+    the rotor slips.
 
     ``w`` is the commanded speed (change of the commanded twist over the sample interval,
-    0 at rest). While twisting further, the actual twist cannot pass the point where
-    ``F |dX/dtheta|`` equals ``T_po(w)`` (found by bisection between the previous and the
-    wanted twist); the shortfall is lost. Slow moves reach further than fast ones. Source:
-    stepper torque-speed curves (pull-out torque falls as back-EMF limits the phase
-    current; e.g. NEMA 17HS4401 datasheet curve); TSA transmission ratio, thesis eq. 4.4.
+    0 at rest). While twisting further, an increment whose end would need a load torque
+    ``T = F |dX/dtheta|`` above ``T_po(w)`` keeps only the fraction ``(T_po / T)^n`` of
+    itself; the rest is lost. A large ``slip_exponent`` n is a stall at the torque limit,
+    a small one a rotor that loses a growing share of its steps as the overload grows.
+    Slow moves reach further than fast ones. Source: stepper torque-speed curves (pull-out
+    torque falls as back-EMF limits the phase current; e.g. NEMA 17HS4401 datasheet curve);
+    TSA transmission ratio, thesis eq. 4.4.
     """
 
     name = "missed_steps_pullout"
@@ -41,6 +43,8 @@ class MissedStepsPullout(Effect):
         pullout_torque_Nm: float = param(0.4, "N m", "pull-out torque T0 at standstill", minimum=0.0)
         corner_speed_turns_per_s: float = param(2.0, "turn/s", "speed w_c at which the pull-out torque halves",
                                                 minimum=1e-6)
+        slip_exponent: float = param(20.0, "1", "n: share (T_po/T)^n of an overloaded increment kept",
+                                     minimum=0.0)
 
     def reset(self) -> None:
         self.lost_turns = 0.0
@@ -57,20 +61,9 @@ class MissedStepsPullout(Effect):
         prev = want if self._prev is None else self._prev
         if abs(want) > abs(prev) and want * prev >= 0.0:
             limit = p.pullout_torque_Nm / (1.0 + speed / p.corner_speed_turns_per_s)
-            if load_torque_Nm(state, want) > limit:
-                sign = 1.0 if want > 0 else -1.0
-                lo, hi = abs(prev), abs(want)
-                if load_torque_Nm(state, sign * lo) > limit:
-                    hi = lo
-                for _ in range(30):
-                    if hi - lo < 1e-7:
-                        break
-                    mid = 0.5 * (lo + hi)
-                    if load_torque_Nm(state, sign * mid) > limit:
-                        hi = mid
-                    else:
-                        lo = mid
-                actual = sign * lo
+            torque = load_torque_Nm(state, want)
+            if torque > limit:
+                actual = prev + (want - prev) * (limit / torque) ** p.slip_exponent
                 self.lost_turns += want - actual
                 want = actual
         self._prev = want
