@@ -14,7 +14,10 @@ Contract of :func:`import_csv`:
   to contract units (:data:`UNITS`; a load given as a mass in g or kg becomes N with
   g0 = 9.80665 m/s^2);
 * every cell must parse: an empty or ``nan`` cell is NaN (not measured) in float
-  columns, but an error in ``t`` and in integer columns; ``t`` must strictly increase;
+  columns, but an error in ``t`` and in integer columns; integers must fit their
+  column's type (``position_raw`` is int16: 40000 is refused, never wrapped); no value
+  may be infinite or larger than the run reader accepts (1e15 in magnitude);
+  ``t`` must strictly increase;
 * columns not given are filled: float columns NaN (not measured / undeclared),
   ``segment`` -1 (no segments), ``motor_moving`` 1 where ``turns`` differs from the
   previous row (0 without turns), ``counter`` the row number 0, 1, ... (no device
@@ -39,8 +42,10 @@ from pathlib import Path
 
 import numpy as np
 
+from tsa_bench.documents import DocumentError, read_text_file
 from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
 from tsa_bench.store.hdf5 import RunWriter
+from tsa_bench.store.reader import MAX_ABS_VALUE
 
 G0 = 9.80665
 #: contract column -> {accepted unit: factor to the contract unit}
@@ -57,6 +62,7 @@ UNITS: dict[str, dict[str, float]] = {
 }
 _HEADER_UNIT = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 MAX_ERRORS = 20
+MAX_CSV_BYTES = 1 << 30
 
 
 class CsvImportError(ValueError):
@@ -83,9 +89,9 @@ def _factor(target: str, unit: str, where: str) -> float:
 def _read_header(path: Path) -> tuple[list[str], int, str, list[tuple[int, list[str]]]]:
     """(header cells, header line number, delimiter, [(line, cells) of data rows])."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CsvImportError(f"{path}: cannot read ({exc})") from None
+        text = read_text_file(path, "CSV file", MAX_CSV_BYTES)
+    except DocumentError as exc:
+        raise CsvImportError(str(exc)) from None
     lines = text.splitlines()
     for i, line in enumerate(lines):
         if line.strip() and not line.lstrip().startswith("#"):
@@ -95,11 +101,14 @@ def _read_header(path: Path) -> tuple[list[str], int, str, list[tuple[int, list[
     delim = "," if "," in lines[i] else (";" if ";" in lines[i] else ("\t" if "\t" in lines[i] else ","))
     rows = []
     reader = csv.reader(lines[i:], delimiter=delim)
-    header = [c.strip() for c in next(reader)]
-    for n, cells in enumerate(reader, start=i + 2):
-        if not cells or (len(cells) == 1 and not cells[0].strip()) or cells[0].lstrip().startswith("#"):
-            continue
-        rows.append((n, cells))
+    try:
+        header = [c.strip() for c in next(reader)]
+        for cells in reader:
+            if not cells or (len(cells) == 1 and not cells[0].strip()) or cells[0].lstrip().startswith("#"):
+                continue
+            rows.append((i + reader.line_num, cells))
+    except csv.Error as exc:  # e.g. an unclosed quote swallowing the rest of the file
+        raise CsvImportError(f"{path}:{i + reader.line_num}: not valid CSV ({exc})") from None
     return header, i + 1, delim, rows
 
 
@@ -144,11 +153,17 @@ def _parse(path: Path, header: list[str], rows: list, cols: dict[str, int],
             except ValueError:
                 errors.append(f"{where}: cannot parse '{cell}' as a number")
                 continue
-            integer = SAMPLE_COLUMNS[target][0][0] in "iu"
-            if not math.isfinite(v) and (target == "t" or integer):
-                errors.append(f"{where}: {'empty' if not cell else repr(cell)} where a value is required")
+            dtype = SAMPLE_COLUMNS[target][0]
+            integer = dtype[0] in "iu"
+            if not math.isfinite(v) and (target == "t" or integer or not math.isnan(v)):
+                errors.append(f"{where}: {'empty' if not cell else repr(cell)} where a finite value is required")
             elif integer and v != int(v):
                 errors.append(f"{where}: '{cell}' is not a whole number")
+            elif integer and not np.iinfo(dtype).min <= v <= np.iinfo(dtype).max:
+                info = np.iinfo(dtype)
+                errors.append(f"{where}: {cell} does not fit {target} ({info.min}..{info.max})")
+            elif abs(v) * factors.get(target, 1.0) > MAX_ABS_VALUE:
+                errors.append(f"{where}: {cell} is too large (at most {MAX_ABS_VALUE:g} in magnitude)")
             data[target][r] = v
         if len(errors) >= MAX_ERRORS:
             break
