@@ -93,8 +93,10 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
         spread = float(np.nanstd(y)) if np.isfinite(y).any() else 0.0
         if np.isfinite(noise[o].rms) and noise[o].rms ** 2 > 0.5 * spread ** 2:
             other = [p for p in OUTPUTS if p != o]
-            bad.append((f"the {o} reading is mostly noise (sample-to-sample scatter {noise[o].rms:.3g} against a "
-                        f"spread of {spread:.3g} {UNITS[o]}): nothing to judge the model on",
+            what = (f"the {o} reading never changes" if spread <= 1e-12 * max(1.0, float(np.nanmax(np.abs(y)))) else
+                    f"the {o} reading is mostly noise (sample-to-sample scatter {noise[o].rms:.3g} against a spread "
+                    f"of {spread:.3g} {UNITS[o]})")
+            bad.append((f"{what}: nothing to judge the model on",
                         f"check the {o} sensor and column, or judge the other output alone: --outputs {other[0]}"))
     if bad:
         return finish.mismatch_only(bad, hold)
