@@ -70,6 +70,7 @@ class Fit:
     nfev: int
     at_bound: list[dict] = field(default_factory=list)     # {key, value, bound, side}
     undetermined: list[str] = field(default_factory=list)
+    cost: float = 0.0      # rss plus the squared prior residuals (what the fit minimised)
 
 
 def calibrate(problem: Problem, cfg: Mapping[str, Any], specs: list[ParamSpec],
@@ -77,7 +78,9 @@ def calibrate(problem: Problem, cfg: Mapping[str, Any], specs: list[ParamSpec],
               max_nfev: int = 40, probe: float = 0.02) -> Fit:
     start = dict(start or {})
     centre = dict(centre or {})
-    centres = [centre.get(s.key, get_value(cfg, s.key)) for s in specs]
+    # priors only where a centre is given (the judged model's own values): a candidate's
+    # parameters are free within their physical range
+    centres = [centre.get(s.key) for s in specs]
     u0 = np.array([s.to_u(start.get(s.key, get_value(cfg, s.key))) for s in specs])
 
     def build(u: np.ndarray, active: list[int]) -> dict:
@@ -88,7 +91,7 @@ def calibrate(problem: Problem, cfg: Mapping[str, Any], specs: list[ParamSpec],
 
     def prior(u: np.ndarray, active: list[int]) -> np.ndarray:
         return np.array([specs[i].prior_residual(specs[i].to_value(u[j]), centres[i]) for j, i in enumerate(active)
-                         if specs[i].prior > 0])
+                         if specs[i].prior > 0 and centres[i] is not None])
 
     all_i = list(range(len(specs)))
     f0 = problem.vector(build(u0, all_i))
@@ -124,21 +127,23 @@ def calibrate(problem: Problem, cfg: Mapping[str, Any], specs: list[ParamSpec],
             elif u_best[j] >= 1 - 1e-3 and not s.hard_hi:
                 at_bound.append({"key": s.key, "value": s.to_value(u_best[j]), "bound": s.hi, "side": "upper"})
         if jac is not None and jac.shape[1] == len(active):
-            undetermined = _undetermined(jac, [specs[i] for i in active])
+            undetermined = _undetermined(jac, [specs[i] for i in active], [centres[i] for i in active])
     else:
         u_best = np.zeros(0)
     fitted = build(u_best, active)
     res = problem.vector(fitted)
     values = {s.key: get_value(fitted, s.key) for s in specs}
-    return Fit(fitted, values, float(res @ res), len(res), len(active), dropped, nfev, at_bound, undetermined)
+    pri = prior(u_best, active) if active else np.zeros(0)
+    return Fit(fitted, values, float(res @ res), len(res), len(active), dropped, nfev, at_bound, undetermined,
+               float(res @ res + pri @ pri))
 
 
-def _undetermined(jac: np.ndarray, specs: list[ParamSpec]) -> list[str]:
-    """Parameters whose posterior variance stays above a quarter of the prior's."""
+def _undetermined(jac: np.ndarray, specs: list[ParamSpec], centres: list) -> list[str]:
+    """Parameters (with a prior) whose posterior variance stays above a quarter of the prior's."""
     prior_u = []
-    for s in specs:
+    for s, c in zip(specs, centres):
         width = (np.log(s.hi) - np.log(s.lo)) if s.log else (s.hi - s.lo)
-        prior_u.append((s.prior / width) if s.prior > 0 else np.inf)
+        prior_u.append((s.prior_sd(c) / width) if s.prior > 0 and c is not None else np.inf)
     prior_u = np.array(prior_u)
     info = jac.T @ jac + np.diag(np.where(np.isfinite(prior_u), 1.0 / np.maximum(prior_u, 1e-12) ** 2, 0.0))
     try:

@@ -109,10 +109,10 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
     centre = {s.key: get_value(model, s.key) for s in specs}
     say("calibrating the judged model: all parameters")
     fit0 = calibrate(ctx.problem, model, specs, start=start, centre=centre, max_nfev=60)
-    if fit0.rss / max(fit0.n, 1) > 4.0 and start:
+    if start:
         say("calibrating the judged model: second start (the model's own values)")
         alt = calibrate(ctx.problem, model, specs, centre=centre, max_nfev=60)
-        if alt.rss < fit0.rss:
+        if alt.cost < fit0.cost:
             fit0 = alt
     say("testing the judged model's residuals")
     s0 = ctx.scores(fit0.cfg)

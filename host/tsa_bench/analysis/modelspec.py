@@ -7,9 +7,11 @@ plant's top-level keys, ``"<effect>.<param>"`` otherwise) to an optimiser variab
 in [0, 1], linearly or logarithmically between ``lo`` and ``hi``. ``hard_lo``/``hard_hi``
 mark bounds that are physical limits (a non-negative coefficient at 0); ending at any
 other bound means the data want a value outside the plausible range, which the engine
-reports. ``prior`` is the standard deviation of a weak Gaussian prior around the
-model's own value (in log units for log parameters): it only decides directions the data
-leave flat (e.g. untwisted length and stiffness from a single load). The ranges cover
+reports. ``prior`` sets a weak Gaussian prior around the model's own value: its standard
+deviation in log units for log parameters (a factor of 10), and for linear ones the larger
+of ``prior`` and the value itself (a factor-of-two belief). It only decides directions the
+data leave flat (untwisted length and stiffness from a single load; a wear rate that one
+twist and untwist cannot tell from the contact term). The ranges cover
 the thesis's strings (3- to 8-ply, Scheme 1 and 2, 3-12 ohm, 150-400 mm) with margin.
 :func:`baseline_specs` lists the calibrated parameters of whatever a model enables.
 """
@@ -51,12 +53,17 @@ class ParamSpec:
             return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
         return min(1.0, max(0.0, (value - self.lo) / (self.hi - self.lo)))
 
+    def prior_sd(self, centre: float) -> float:
+        """Prior standard deviation (log units for log parameters); for linear ones ``prior``
+        is a floor and the prior is as wide as the centre itself (a factor-of-two belief)."""
+        return self.prior if self.log else max(self.prior, abs(centre))
+
     def prior_residual(self, value: float, centre: float) -> float:
         if self.prior <= 0:
             return 0.0
         if self.log:
             return (math.log(max(value, 1e-300)) - math.log(max(centre, 1e-300))) / self.prior
-        return (value - centre) / self.prior
+        return (value - centre) / self.prior_sd(centre)
 
     def with_range(self, v: float) -> "ParamSpec":
         """The spec widened (softly) to contain ``v``."""
@@ -71,9 +78,9 @@ BASE_SPECS: dict[str, ParamSpec] = {s.key: s for s in (
     ParamSpec("geometry.radius_mm", 0.01, 10.0, True, prior=LN10),
     ParamSpec("geometry.resistance_ohm", 0.05, 500.0, True, prior=LN10),
     ParamSpec("string_compliance.stiffness_N", 0.5, 1e5, True, hard_hi=True, prior=LN10),  # 1e5 N: inextensible
-    ParamSpec("thermal_contraction.strain_per_K", 0.0, 0.02, hard_lo=True, prior=0.005),
-    ParamSpec("resistance_length.ohm_per_mm", -1.0, 1.0, prior=0.1),
-    ParamSpec("resistance_length.contact_ohm_per_turn", -0.2, 0.2, prior=0.02),
+    ParamSpec("thermal_contraction.strain_per_K", 0.0, 0.02, hard_lo=True, prior=5e-4),
+    ParamSpec("resistance_length.ohm_per_mm", -1.0, 1.0, prior=0.005),
+    ParamSpec("resistance_length.contact_ohm_per_turn", -0.2, 0.2, prior=5e-4),
 )}
 
 
@@ -143,5 +150,8 @@ def baseline_specs(plant_cfg: Mapping[str, Any]) -> list[ParamSpec]:
         specs.append(spec.with_range(get_value(plant_cfg, key)))
     for name in on:
         for s in FORM_SPECS.get(name, ()):
-            specs.append(s.with_range(get_value(plant_cfg, s.key)))
+            # a weak prior around the judged model's own value (used where it gives a centre)
+            prior = LN10 if s.log else (s.hi - s.lo) / 200.0
+            specs.append(ParamSpec(s.key, s.lo, s.hi, s.log, s.hard_lo, s.hard_hi, prior).with_range(
+                get_value(plant_cfg, s.key)))
     return specs
