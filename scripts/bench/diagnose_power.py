@@ -1,19 +1,27 @@
 #!/usr/bin/env python3
-"""Power of `tsa-bench diagnose`: detection rate per hidden effect and false-alarm rate.
+"""Power of `tsa-bench diagnose` on two generators: detection, wrong names, false alarms, time.
 
-Uses the hidden-effect generator of the engine's tests, tests/analysis/hidden.py
-(imported by path: ``generate(path, effects, seed, short)`` and ``HIDEABLE``): for each
-effect x seed it writes a "measured" run = baseline + that effect (parameters drawn in
-physical ranges, sensor noise on), runs ``diagnose`` against the baseline and counts
+Generators (both in tests/, imported by path):
 
-* detected - the drawn effect is among the named causes;
-* detected + gain - and the best held-out relative RMSE gain over the outputs >= 30 %;
-* wrong    - some other effect was named.
+* ``library``: tests/analysis/hidden.py, the project's own plant (tsa_bench.sim) on the
+  thesis-like diagnostic protocol, one or two library effects hidden (parameters drawn);
+* ``foreign``: tests/analysis/foreign/, an independent numpy plant on random rotation
+  walks, rigs unlike the library default, effects in other forms and effects the library
+  does not have (tests/analysis/foreign/cases.py says what each case must give).
 
-Clean runs (baseline only) give the false-alarm rate: any cause named. Rates come with
-95 % Wilson intervals.
+For each case x seed a run is written and diagnosed against the default judged model
+(configs/bench/sim-baseline.yaml). Reported, each with a 95 % Wilson interval:
 
-    python scripts/bench/diagnose_power.py [--seeds 5] [--clean 20] [--effects a,b] [--short] [--jobs 2]
+* detection: in-library cases whose expected effects are all named, dominant first (with
+  two hidden effects, the one that changes the noise-free outputs more, in noise units);
+* wrong name: runs where an effect not hidden was named (any case);
+* out-of-library: cases answered ``unexplained`` with nothing named;
+* false alarm: clean runs not answered ``explained``;
+
+and the diagnose time per run (median, max).
+
+    python scripts/bench/diagnose_power.py [--seeds 3] [--clean 20] [--generators library,foreign]
+                                           [--cases a,b] [--minutes 20] [--jobs 2] [-v]
 """
 
 from __future__ import annotations
@@ -28,17 +36,16 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-HIDDEN = ROOT / "tests" / "analysis" / "hidden.py"
-
-
-def _hidden():
-    if not HIDDEN.exists():
-        sys.exit(f"diagnose_power: the hidden-effect generator {HIDDEN.relative_to(ROOT)} is missing; "
-                 "it belongs to the diagnose engine's tests (issue 5)")
-    spec = importlib.util.spec_from_file_location("tsa_hidden", HIDDEN)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+sys.path.insert(0, str(ROOT))          # the generators live in tests/ (a package)
+LIBRARY_CASES = {
+    **{e: ((e,), "named", (e,)) for e in ("resistance_transient_decay", "resistance_creep", "length_creep",
+                                           "load_dependence", "twist_hysteresis", "thermal_dynamics",
+                                           "missed_steps", "resistance_hysteresis")},
+    "thermal_dynamics+resistance_temperature": (("thermal_dynamics", "resistance_temperature"), "named",
+                                                ("thermal_dynamics", "resistance_temperature")),
+    "length_creep+resistance_transient_decay": (("length_creep", "resistance_transient_decay"), "named",
+                                                ("length_creep", "resistance_transient_decay")),
+}
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -51,77 +58,151 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return max(0.0, c - h), min(1.0, c + h)
 
 
-def one(job: tuple[tuple[str, ...], int, bool]) -> dict:
-    """Generate one run with ``effects`` hidden and diagnose it."""
-    effects, seed, short = job
-    hidden = _hidden()
+def _library_run(case: str, seed: int, path: Path) -> dict:
+    from tests.analysis import hidden
+    if case == "clean":
+        info = hidden.generate(path, (), seed=seed, short=True)
+        return {"verdict": "explained", "causes": (), "n": info["n"]}
+    effects, verdict, causes = LIBRARY_CASES[case]
+    info = hidden.generate(path, effects, seed=seed)
+    if len(causes) > 1:
+        causes = tuple(sorted(causes, key=lambda c: -_library_power(effects, c, seed)))
+    return {"verdict": verdict, "causes": causes, "n": info["n"]}
+
+
+def _library_power(effects: tuple[str, ...], effect: str, seed: int) -> float:
+    """Mean squared change of the noise-free outputs, in noise variances, that ``effect`` makes
+    among ``effects`` (which of two hidden effects dominates)."""
+    import numpy as np
+
+    from tests.analysis import hidden
+    from tsa_bench.analysis.modelspec import switch
+    from tsa_bench.analysis.replay import deterministic
+    from tsa_bench.sim.history import simulate
+    h = hidden.history(hidden.protocol_steps())
+    cfg, _ = hidden.truth_config(effects, seed, h)
+    args = (h["t"], h["turns"], h["heater_voltage"], h["load_g"], h["motor_moving"].astype(bool))
+    full = simulate(deterministic(cfg), *args)
+    rest = simulate(deterministic(switch(cfg, effect, False)), *args)
+    scale = {"length_mm": np.hypot(0.05, 0.14 / np.sqrt(12)), "resistance_ohm": 0.001}
+    return float(sum(np.mean(((full[k] - rest[k]) / s) ** 2) for k, s in scale.items()))
+
+
+def _foreign_run(case: str, seed: int, path: Path, minutes: float) -> dict:
+    from tests.analysis.foreign.cases import make
+    c = make(case, path, seed=seed, minutes=minutes)
+    return {"verdict": c.verdict, "causes": tuple(c.causes), "n": c.n}
+
+
+def one(job: tuple[str, str, int, float]) -> dict:
+    """Generate one run and diagnose it."""
+    generator, case, seed, minutes = job
     from tsa_bench.analysis import diagnose, load_model
     from tsa_bench.store import read_run
     with tempfile.TemporaryDirectory() as tmp:
-        info = hidden.generate(Path(tmp) / "run.h5", tuple(effects), seed=seed, short=short)
-        runs = [read_run(info["path"])]
-        t0 = time.perf_counter()
-        result = diagnose(runs, load_model(None), None, seed=seed)
-        dt = time.perf_counter() - t0
-    gains = {g.output: g.relative for g in result.gain}
-    return {"effects": tuple(effects), "seed": seed, "causes": list(result.causes), "gains": gains,
-            "seconds": dt, "n": info["n"]}
+        path = Path(tmp) / "run.h5"
+        truth = _library_run(case, seed, path) if generator == "library" else _foreign_run(case, seed, path, minutes)
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = diagnose([read_run(path)], load_model(None), None, seed=seed)
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"generator": generator, "case": case, "seed": seed, "expected": truth["verdict"],
+            "expected_causes": truth["causes"], "verdict": result.verdict, "causes": tuple(result.causes),
+            "seconds": dt, "cpu_seconds": cpu, "n": truth["n"], "summary": result.summary}
+
+
+def jobs_for(generators: list[str], seeds: int, clean: int, cases: list[str] | None, minutes: float) -> list:
+    jobs = []
+    if "library" in generators:
+        for case in cases or list(LIBRARY_CASES):
+            if case in LIBRARY_CASES:
+                jobs += [("library", case, 100 + s, minutes) for s in range(seeds)]
+        jobs += [("library", "clean", 500 + s, minutes) for s in range(clean)]
+    if "foreign" in generators:
+        from tests.analysis.foreign.cases import CASES
+        for case in cases or list(CASES):
+            if case in CASES and not case.startswith("clean"):
+                jobs += [("foreign", case, 100 + s, minutes) for s in range(seeds)]
+        rigs = [c for c in CASES if c.startswith("clean")]
+        jobs += [("foreign", rigs[s % len(rigs)], 500 + s, minutes) for s in range(clean)]
+    return jobs
+
+
+def rate_line(label: str, k: int, n: int) -> str:
+    lo, hi = wilson(k, n)
+    return f"  {label:<44} {k:>4}/{n:<4} = {100 * k / max(n, 1):5.1f} %   95 % CI [{100 * lo:.1f}, {100 * hi:.1f}] %"
+
+
+def report(results: list[dict], generator: str) -> None:
+    rs = [r for r in results if r["generator"] == generator]
+    if not rs:
+        return
+    print(f"\n{generator} generator: {len(rs)} runs")
+    named = [r for r in rs if r["expected"] == "named"]
+    outside = [r for r in rs if r["expected"] == "unexplained"]
+    clean = [r for r in rs if r["expected"] == "explained"]
+    print(f"  {'case':<44} {'runs':>4}  right  verdicts")
+    for case in sorted({r["case"] for r in rs}):
+        cs = [r for r in rs if r["case"] == case]
+        right = sum(_right(r) for r in cs)
+        verdicts = ", ".join(sorted({r["verdict"] + (":" + "+".join(r["causes"]) if r["causes"] else "")
+                                     for r in cs}))
+        print(f"  {case:<44} {len(cs):>4}  {right:>5}  {verdicts}")
+    print(rate_line("detection (expected effects named, dominant first)", sum(_right(r) for r in named),
+                    len(named)))
+    print(rate_line("wrong name (an effect not hidden was named)",
+                    sum(any(c not in r["expected_causes"] for c in r["causes"]) for r in rs), len(rs)))
+    if outside:
+        print(rate_line("out-of-library answered unexplained, nothing named", sum(_right(r) for r in outside),
+                        len(outside)))
+    if clean:
+        print(rate_line("false alarm (clean run not explained)", sum(r["verdict"] != "explained" for r in clean),
+                        len(clean)))
+    secs = sorted(r["seconds"] for r in rs)
+    cpu = sorted(r.get("cpu_seconds", r["seconds"]) for r in rs)
+    print(f"  diagnose time per run: median {secs[len(secs) // 2]:.1f} s, max {secs[-1]:.1f} s wall; "
+          f"median {cpu[len(cpu) // 2]:.1f} s, max {cpu[-1]:.1f} s CPU "
+          f"(samples per run {min(r['n'] for r in rs)}-{max(r['n'] for r in rs)})")
+
+
+def _right(r: dict) -> bool:
+    if r["expected"] == "named":
+        return r["verdict"] == "named" and tuple(r["causes"]) == tuple(r["expected_causes"])
+    return r["verdict"] == r["expected"] and not r["causes"]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=5, help="seeds per hidden effect")
-    ap.add_argument("--clean", type=int, default=20, help="clean (no hidden effect) seeds")
-    ap.add_argument("--effects", default=None, help="comma-separated subset (default: the generator's HIDEABLE)")
-    ap.add_argument("--short", action="store_true", help="the generator's short protocol (faster, less power)")
+    ap.add_argument("--seeds", type=int, default=3, help="seeds per case with an effect")
+    ap.add_argument("--clean", type=int, default=20, help="clean runs per generator")
+    ap.add_argument("--generators", default="library,foreign")
+    ap.add_argument("--cases", default=None, help="comma-separated subset of cases")
+    ap.add_argument("--minutes", type=float, default=20.0, help="length of the foreign generator's walks")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes")
     ap.add_argument("--verbose", "-v", action="store_true", help="print every run")
     args = ap.parse_args()
-    hidden = _hidden()
-    try:
-        from tsa_bench.analysis import diagnose, load_model  # noqa: F401
-    except ImportError as exc:
-        sys.exit(f"diagnose_power: the engine tsa_bench.analysis is missing ({exc})")
-    effects = args.effects.split(",") if args.effects else list(hidden.HIDEABLE)
-    jobs = [((e,), 100 + s, args.short) for e in effects for s in range(args.seeds)]
-    jobs += [((), 500 + s, args.short) for s in range(args.clean)]
+    gens = [g.strip() for g in args.generators.split(",") if g.strip()]
+    jobs = jobs_for(gens, args.seeds, args.clean, args.cases.split(",") if args.cases else None, args.minutes)
     t0 = time.perf_counter()
+    results = []
+
+    def show(r: dict) -> None:
+        results.append(r)
+        if args.verbose:
+            mark = "ok " if _right(r) else "BAD"
+            print(f"{mark} {r['generator']:<8} {r['case']:<40} seed {r['seed']:<4} {r['seconds']:5.1f} s  "
+                  f"{r['summary'][:160]}", flush=True)
+
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
-            results = list(pool.map(one, jobs))
+            for r in pool.map(one, jobs):
+                show(r)
     else:
-        results = [one(j) for j in jobs]
+        for j in jobs:
+            show(one(j))
     wall = time.perf_counter() - t0
-    if args.verbose:
-        for r in results:
-            g = ", ".join(f"{o} {100 * v:+.0f} %" for o, v in r["gains"].items())
-            print(f"  {','.join(r['effects']) or 'clean':<28} seed {r['seed']:<4} named {r['causes'] or '-'}  "
-                  f"gain {g}  ({r['seconds']:.1f} s)")
-
-    print(f"diagnose power: {len(results)} runs ({'short' if args.short else 'full'} protocol, "
-          f"{results[0]['n'] if results else 0} samples each), {wall:.0f} s wall with {args.jobs} job(s)")
-    print(f"{'hidden effect':<28} {'runs':>4} {'detected':>9} {'+gain>=30%':>11} {'wrong':>6}  detection 95 % CI")
-    tot_k = tot_n = 0
-    for e in effects:
-        rs = [r for r in results if r["effects"] == (e,)]
-        k = sum(e in r["causes"] for r in rs)
-        kg = sum(e in r["causes"] and max(r["gains"].values(), default=0) >= 0.3 for r in rs)
-        wrong = sum(any(c != e for c in r["causes"]) for r in rs)
-        lo, hi = wilson(k, len(rs))
-        tot_k, tot_n = tot_k + k, tot_n + len(rs)
-        print(f"{e:<28} {len(rs):>4} {k / max(len(rs), 1):>9.0%} {kg / max(len(rs), 1):>11.0%} {wrong:>6}  "
-              f"[{lo:.0%}, {hi:.0%}]")
-    lo, hi = wilson(tot_k, tot_n)
-    print(f"{'all effects':<28} {tot_n:>4} {tot_k / max(tot_n, 1):>9.0%} {'':>11} {'':>6}  [{lo:.0%}, {hi:.0%}]")
-    clean = [r for r in results if not r["effects"]]
-    fa = sum(bool(r["causes"]) for r in clean)
-    lo, hi = wilson(fa, len(clean))
-    named = sorted({c for r in clean for c in r["causes"]})
-    print(f"false alarms (clean runs): {fa}/{len(clean)} = {fa / max(len(clean), 1):.0%} "
-          f"(95 % CI [{lo:.0%}, {hi:.0%}]; target <= 5 %){'; named: ' + ', '.join(named) if named else ''}")
-    secs = sorted(r["seconds"] for r in results)
-    if secs:
-        print(f"diagnose time per run: median {secs[len(secs) // 2]:.1f} s, max {secs[-1]:.1f} s")
+    print(f"diagnose power: {len(results)} runs, {wall:.0f} s wall with {args.jobs} job(s)")
+    for g in gens:
+        report(results, g)
 
 
 if __name__ == "__main__":

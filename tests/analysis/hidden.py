@@ -1,4 +1,4 @@
-"""Hidden-effect data generator for the diagnose tests (issue 5).
+"""Hidden-effect data generator for the diagnose tests (the project's own plant).
 
 Builds one rich diagnostic protocol (twist staircases up and down with 60-120 s holds,
 fast cycles, load changes, heater steps) as a 10 Hz input history, simulates it with a

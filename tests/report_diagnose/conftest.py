@@ -8,9 +8,9 @@ from diagnose_helpers import build_result
 
 @pytest.fixture
 def result_with_cause():
-    return build_result()
+    return build_result(verdict="named")
 
 
 @pytest.fixture
 def result_clean():
-    return build_result(cause=None)
+    return build_result(verdict="explained")

@@ -1,4 +1,5 @@
-"""`tsa-bench diagnose`: bad input exits 2 naming the file; end to end on a small simulated run."""
+"""`tsa-bench diagnose`: bad input exits 2 naming the file; the verdict first; output beside the
+run; progress on stderr; Ctrl-C exits 130 writing nothing; end to end on a small simulated run."""
 
 from __future__ import annotations
 
@@ -78,78 +79,99 @@ def test_end_to_end_on_a_small_simulated_run(tmp_path, monkeypatch):
     gen = _speed_module()
     from tsa_bench.analysis import load_model
     model = load_model(None)
-    off = gen.effects_off(model)
-    effect = next((e for e in gen.PREFERRED if e in off), None)
-    assert effect is not None, f"the baseline model leaves none of {gen.PREFERRED} off"
-    run = gen.simulate_run(gen.with_hidden_effect(model, effect), HERE / "small.yaml", tmp_path / "small.h5", seed=3)
+    run = gen.simulate_run(gen.with_hidden_effect(model, "resistance_transient_decay"), HERE / "small.yaml",
+                           tmp_path / "data" / "small.h5", seed=3)
     monkeypatch.chdir(tmp_path)
-    res = invoke(run)
+    res = invoke(run, "--max-causes", "1")
     assert res.exit_code == 0, res.output
-    out = tmp_path / "diagnose-small"
+    out = tmp_path / "data" / "small_diagnose"          # beside the run, not in the current directory
     for name in ("report.txt", "fit.png", "residuals.png", "diagnose.json"):
         assert (out / name).stat().st_size > 0, name
     data = json.loads((out / "diagnose.json").read_text())
-    assert {"cause", "causes", "candidates", "gain", "residual_tests"} <= set(data)
-    assert "VERDICT" in res.output and f"wrote {out / 'report.txt'}" in res.output
-    if data["cause"]:
-        assert (out / "cause.png").exists() or "cause_signal" not in data
+    assert data["verdict"] == "named" and data["causes"] == ["resistance_transient_decay"], data["summary"]
+    assert res.stdout.startswith("VERDICT: named: resistance_transient_decay")
+    assert f"wrote {out / 'report.txt'}" in res.stdout
+    assert "diagnose: calibrating the judged model" in res.stderr and "diagnose:" not in res.stdout
+    assert data["provenance"]["inputs"][0]["sha256"] and data["provenance"]["model"]["path"].endswith(
+        "sim-baseline.yaml")
 
 
 @pytest.fixture
 def fake_engine(monkeypatch):
-    """A stand-in engine returning a hand-built result: the CLI's happy path without the real engine."""
-    import sys
-    import types
-
-    import tsa_bench
+    """The real CLI with the engine's diagnose replaced by a hand-built result."""
     from diagnose_helpers import build_result
 
+    from tsa_bench import analysis
+
     calls = {}
-    fake = types.ModuleType("tsa_bench.analysis")
 
-    def load_model(path):
-        calls["model"] = path
-        return {"effects": {}}
-
-    def diagnose(runs, model, holdout=None, *, max_causes=3, seed=0):
+    def diagnose(runs, model, holdout=None, *, max_causes=3, seed=0, progress=None, outputs=None, model_path=None):
         if holdout == "bad":
-            raise ValueError(f"holdout {holdout!r}: expected run:N, after:SECONDS or fraction:F")
-        calls.update(runs=runs, holdout=holdout, max_causes=max_causes)
+            raise analysis.HoldoutError(f"holdout {holdout!r}: expected run:N, after:SECONDS or fraction:F")
+        if holdout == "interrupt":
+            raise KeyboardInterrupt
+        progress("working")
+        calls.update(runs=runs, holdout=holdout, max_causes=max_causes, outputs=outputs, model_path=model_path)
         return build_result()
 
-    fake.load_model, fake.diagnose = load_model, diagnose
-    monkeypatch.setitem(sys.modules, "tsa_bench.analysis", fake)
-    monkeypatch.setattr(tsa_bench, "analysis", fake, raising=False)
+    monkeypatch.setattr(analysis, "diagnose", diagnose)
     return calls
 
 
-def test_cli_writes_report_figures_and_json(tmp_path, monkeypatch, fake_engine):
-    write_minimal_run(tmp_path / "bench run.h5")
-    write_minimal_run(tmp_path / "second.h5")
+def test_cli_writes_report_figures_and_json_beside_the_run(tmp_path, monkeypatch, fake_engine):
+    (tmp_path / "data").mkdir()
+    write_minimal_run(tmp_path / "data" / "bench run.h5")
+    write_minimal_run(tmp_path / "data" / "second.h5")
     monkeypatch.chdir(tmp_path)
-    res = invoke("bench run.h5", "second.h5", "--holdout", "run:1", "--max-causes", "2")
+    res = invoke("data/bench run.h5", "data/second.h5", "--holdout", "run:1", "--max-causes", "2", "--outputs",
+                 "length")
     assert res.exit_code == 0, res.output
     assert len(fake_engine["runs"]) == 2 and fake_engine["holdout"] == "run:1" and fake_engine["max_causes"] == 2
-    assert fake_engine["model"] is None
-    out = tmp_path / "diagnose-bench-run"
+    assert fake_engine["outputs"] == ("length",) and fake_engine["model_path"].endswith("sim-baseline.yaml")
+    out = tmp_path / "data" / "bench run_diagnose"
     for name in ("report.txt", "fit.png", "residuals.png", "cause.png", "diagnose.json"):
         assert (out / name).stat().st_size > 0, name
-    assert "VERDICT: unmodelled effect found: resistance_transient_decay" in res.output
-    assert f"wrote {out / 'diagnose.json'}" in res.output
-    data = json.loads((out / "diagnose.json").read_text())
-    assert data["cause"] == "resistance_transient_decay"
+    assert res.stdout.splitlines()[0] == "VERDICT: named: resistance_transient_decay (stretched exponential, " \
+                                         "confidence 0.98)"
+    assert "diagnose: working" in res.stderr
+    assert json.loads((out / "diagnose.json").read_text())["verdict"] == "named"
 
 
 def test_cli_json_and_out_options(tmp_path, fake_engine):
     write_minimal_run(tmp_path / "a.h5")
-    res = invoke(tmp_path / "a.h5", "--out", tmp_path / "rep", "--json", tmp_path / "j" / "r.json")
+    res = invoke(tmp_path / "a.h5", "--out", tmp_path / "rep", "--json", tmp_path / "j" / "r.json", "-q")
     assert res.exit_code == 0, res.output
     assert (tmp_path / "rep" / "report.txt").exists() and (tmp_path / "j" / "r.json").exists()
-    assert not (tmp_path / "rep" / "diagnose.json").exists()
+    assert not (tmp_path / "rep" / "diagnose.json").exists() and res.stderr == ""
 
 
 def test_cli_bad_holdout_from_engine_exits_2(tmp_path, fake_engine):
     write_minimal_run(tmp_path / "a.h5")
     res = invoke(tmp_path / "a.h5", "--holdout", "bad", "--out", tmp_path / "o")
-    assert res.exit_code == 2 and "error: holdout 'bad'" in res.output
+    assert res.exit_code == 2 and "error: holdout 'bad'" in res.stderr and len(res.stderr.splitlines()) <= 3
     assert not (tmp_path / "o").exists()
+
+
+def test_cli_ctrl_c_exits_130_writing_nothing(tmp_path, fake_engine):
+    write_minimal_run(tmp_path / "a.h5")
+    res = invoke(tmp_path / "a.h5", "--holdout", "interrupt", "--out", tmp_path / "o")
+    assert res.exit_code == 130 and "interrupted" in res.stderr and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("bad", ["torque", "", "length,speed"])
+def test_cli_bad_outputs_exit_2(tmp_path, bad):
+    write_minimal_run(tmp_path / "a.h5")
+    res = invoke(tmp_path / "a.h5", "--outputs", bad, "--out", tmp_path / "o")
+    assert res.exit_code == 2 and "--outputs" in res.stderr and not (tmp_path / "o").exists()
+
+
+def test_cli_run_without_twist_is_a_mismatch_verdict(tmp_path):
+    """A run whose turns column is all NaN (a CSV import without it): verdict model_mismatch, exit 0."""
+    import h5py
+    write_minimal_run(tmp_path / "a.h5", n=400)
+    with h5py.File(tmp_path / "a.h5", "r+") as f:
+        f["samples/turns"][...] = float("nan")
+    res = invoke(tmp_path / "a.h5", "--out", tmp_path / "o", "-q")
+    assert res.exit_code == 0, res.output
+    assert res.stdout.startswith("VERDICT: model_mismatch: ") and "turns" in res.stdout.splitlines()[0]
+    assert json.loads((tmp_path / "o" / "diagnose.json").read_text())["verdict"] == "model_mismatch"

@@ -1,12 +1,14 @@
-"""Judge the simulated plant against measured runs (issue 5, ``tsa-bench diagnose``).
+"""Judge the simulated plant against measured runs (``tsa-bench diagnose``).
 
 Units: time in s, length in mm, resistance in ohm, load in g inside (N in files).
 
-Contract: :func:`diagnose` calibrates the model's enabled effects on the training part
-of the runs, replays the recorded inputs, tests the residuals, ranks the library
-effects the model leaves off (and generic signals), names the effect(s) whose inclusion
-gives a significant held-out improvement and reports the gain; :func:`load_model`
-reads the ``plant`` mapping of a bench YAML (None: configs/bench/sim-baseline.yaml).
+Contract: :func:`diagnose` calibrates the judged model on the training part of the
+runs, tests its residuals against a noise model estimated from the data, screens and
+refits candidate effects (library effects in several physical forms), names a cause
+only when it passes a held-out, block-bootstrapped gate and explains most of the
+structure, and always ends in a verdict: ``explained``, ``named``, ``unexplained`` or
+``model_mismatch`` (docs/diagnose.md). :func:`load_model` reads the ``plant`` mapping of
+a bench YAML (None: configs/bench/sim-baseline.yaml).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from tsa_bench.analysis.result import Candidate, DiagnoseResult, Gain
+from tsa_bench.analysis.result import VERDICTS, Candidate, DiagnoseResult, Gain, NamedCause
 
 CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
 BASELINE = CONFIG_DIR / "sim-baseline.yaml"
@@ -32,5 +34,7 @@ def load_model(path: str | Path | None) -> dict[str, Any]:
 
 
 from tsa_bench.analysis.diagnose import diagnose  # noqa: E402
+from tsa_bench.analysis.holdout import HoldoutError  # noqa: E402
 
-__all__ = ["Candidate", "Gain", "DiagnoseResult", "diagnose", "load_model"]
+__all__ = ["Candidate", "Gain", "NamedCause", "DiagnoseResult", "VERDICTS", "HoldoutError", "diagnose",
+           "load_model", "BASELINE"]

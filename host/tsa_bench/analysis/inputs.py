@@ -1,14 +1,15 @@
-"""Recorded inputs and outputs of a run, and the train / held-out split.
+"""Recorded inputs and outputs of a run, and what they lack for the judged model.
 
 Units: t in s, turns in turns, heater voltage in V, load in g (converted from the
 file's N), length in mm, resistance in ohm.
 
 Contract: :func:`run_inputs` turns a :class:`~tsa_bench.store.RunData` into
-:class:`RunInputs` (undeclared loads forward-filled, leading gaps from the model's
-``initial_load_g``). :func:`split` applies a holdout SPEC: ``None`` (whole last run
-when several, else the last 30 % cut at a segment boundary), ``"run:N"``,
-``"after:SECONDS"``, ``"fraction:F"``; held-out samples always form one suffix per
-run, never interleaved with training samples.
+:class:`RunInputs`: undeclared loads forward-filled (leading gaps from the model's
+``initial_load_g``), a missing heater voltage read as 0 V, isolated missing twist
+samples forward-filled (and never scored). :func:`missing_inputs` lists, as
+(problem, remedy) pairs, what makes a run unusable for the judged model (no twist,
+no measured output, time not increasing); the engine turns them into the verdict
+``model_mismatch``. ``heldout`` is set by :mod:`tsa_bench.analysis.holdout`.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 G0 = 9.80665
+OUTPUTS = ("length", "resistance")
 
 
 @dataclass
@@ -33,90 +35,82 @@ class RunInputs:
     cycle: np.ndarray | None = None
     heldout: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     name: str = ""
+    scored: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))   # samples whose inputs are real
+    load_recorded: bool = True
 
     def __len__(self) -> int:
         return len(self.t)
 
+    def output(self, name: str) -> np.ndarray:
+        return self.length if name == "length" else self.resistance
+
     @property
-    def n_train(self) -> int:
-        """Training samples form the prefix [0, n_train)."""
-        h = np.flatnonzero(self.heldout)
-        return int(h[0]) if len(h) else len(self.t)
+    def duration_s(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
+
+    @property
+    def rate_hz(self) -> float:
+        d = np.diff(self.t)
+        d = d[d > 0]
+        return float(1.0 / np.median(d)) if len(d) else 1.0
+
+
+def _ffill(x: np.ndarray, first: float) -> tuple[np.ndarray, np.ndarray]:
+    ok = np.isfinite(x)
+    if not ok.any():
+        return np.full(len(x), float(first)), ok
+    idx = np.where(ok, np.arange(len(x)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    out = x[idx].astype(float)
+    out[: int(np.argmax(ok))] = first
+    return out, ok
 
 
 def run_inputs(run, initial_load_g: float = 0.0) -> RunInputs:
     s = run.samples
     t = np.asarray(s["t"], float)
-    load_n = np.asarray(s["load"], float)
-    load_g = load_n / G0 * 1000.0
-    ok = np.isfinite(load_g)
-    if ok.any():
-        idx = np.where(ok, np.arange(len(t)), 0)
-        np.maximum.accumulate(idx, out=idx)
-        filled = load_g[idx]
-        first = int(np.argmax(ok))
-        filled[:first] = initial_load_g
-        load_g = filled
-    else:
-        load_g = np.full(len(t), float(initial_load_g))
+    load_raw = np.asarray(s["load"], float) / G0 * 1000.0
+    load_g, load_ok = _ffill(load_raw, initial_load_g)
     load_g = np.maximum(load_g, 0.0)
-    seg = np.asarray(s["segment"], int)
+    turns_raw = np.asarray(s["turns"], float)
+    first = turns_raw[np.isfinite(turns_raw)][0] if np.isfinite(turns_raw).any() else 0.0
+    turns, turns_ok = _ffill(turns_raw, first)
+    seg = np.nan_to_num(np.asarray(s["segment"], float), nan=-1).astype(int)
     cycle = None
     if run.segments is not None and len(run.segments) and "cycle" in (run.segments.dtype.names or ()):
         cyc = np.asarray(run.segments["cycle"], int)
         cycle = np.where((seg >= 0) & (seg < len(cyc)), cyc[np.clip(seg, 0, len(cyc) - 1)], -1)
     volts = np.nan_to_num(np.asarray(s["heater_voltage"], float))
-    return RunInputs(t, np.asarray(s["turns"], float), volts, load_g,
-                     np.asarray(s["motor_moving"]).astype(bool), np.asarray(s["length"], float),
+    moving = np.nan_to_num(np.asarray(s["motor_moving"], float)).astype(bool)
+    return RunInputs(t, turns, volts, load_g, moving, np.asarray(s["length"], float),
                      np.asarray(s["resistance"], float), seg, cycle, np.zeros(len(t), bool),
-                     str(getattr(run, "path", "")))
+                     str(getattr(run, "path", "")), turns_ok & np.isfinite(t), bool(load_ok.any()))
 
 
-def _cut_at_segment(inp: RunInputs, i: int) -> int:
-    """Move a cut index to the nearest segment boundary (change of segment index)."""
-    b = np.flatnonzero(np.diff(inp.segment) != 0) + 1
-    if len(b) == 0:
-        return i
-    return int(b[np.argmin(np.abs(b - i))])
-
-
-def split(runs: list[RunInputs], holdout: str | None) -> str:
-    """Set each run's ``heldout`` mask from the SPEC; return a description."""
+def missing_inputs(runs: list[RunInputs], outputs: tuple[str, ...]) -> list[tuple[str, str]]:
+    """(problem, remedy) pairs that keep the judged model from these runs; empty = usable."""
+    out: list[tuple[str, str]] = []
     for r in runs:
-        r.heldout = np.zeros(len(r), bool)
-    if holdout is None:
-        if len(runs) > 1:
-            runs[-1].heldout[:] = True
-            return f"held out: whole last run ({runs[-1].name})"
-        holdout = "fraction:0.3"
-        segment_cut = True
-    else:
-        segment_cut = False
-    kind, _, arg = holdout.partition(":")
-    try:
-        value = float(arg)
-    except ValueError:
-        raise ValueError(f"holdout {holdout!r}: expected run:N, after:SECONDS or fraction:F") from None
-    if kind == "run":
-        k = int(value)
-        if not -len(runs) <= k < len(runs):
-            raise ValueError(f"holdout {holdout!r}: only {len(runs)} run(s)")
-        if len(runs) < 2:
-            raise ValueError(f"holdout {holdout!r}: holding out a whole run needs several runs")
-        runs[k].heldout[:] = True
-        return f"held out: run {k}"
-    if kind == "after":
-        for r in runs:
-            r.heldout = r.t >= value
-        return f"held out: t >= {value} s"
-    if kind == "fraction":
-        if not 0.0 < value < 1.0:
-            raise ValueError(f"holdout {holdout!r}: fraction must be in (0, 1)")
-        for r in runs:
-            t0, t1 = r.t[0], r.t[-1]
-            i = int(np.searchsorted(r.t, t1 - value * (t1 - t0)))
-            if segment_cut:
-                i = _cut_at_segment(r, i)
-            r.heldout[i:] = True
-        return f"held out: last {value:.0%} of the time" + (" (cut at a segment boundary)" if segment_cut else "")
-    raise ValueError(f"holdout {holdout!r}: expected run:N, after:SECONDS or fraction:F")
+        name = r.name or "run"
+        if len(r) < 20:
+            out.append((f"{name}: only {len(r)} samples", "record a longer run"))
+            continue
+        if not np.all(np.isfinite(r.t)) or np.any(np.diff(r.t) <= 0):
+            out.append((f"{name}: time is not finite and strictly increasing", "re-export the run with a clean time "
+                        "column"))
+        frac = float(np.mean(r.scored))
+        if frac == 0.0:
+            out.append((f"{name}: no motor twist recorded (turns is all NaN); the model is driven by the twist",
+                        "record or import a turns column (tsa-bench import --map turns=...)"))
+        elif frac < 0.5:
+            out.append((f"{name}: motor twist missing on {100 * (1 - frac):.0f} % of the samples",
+                        "record or import the turns column completely"))
+        elif np.ptp(r.turns[r.scored]) == 0 and np.ptp(r.volts) == 0 and np.ptp(r.load_g) == 0:
+            out.append((f"{name}: no input changes (twist, heater and load are constant); nothing excites the model",
+                        "diagnose a run that moves the motor, heats or changes the load"))
+    for o in outputs:
+        if not any(np.isfinite(r.output(o)).sum() >= 20 for r in runs):
+            other = [p for p in OUTPUTS if p != o]
+            out.append((f"{o} is not measured (all NaN) in every run; the judged model's {o} cannot be compared",
+                        f"judge the other output alone: --outputs {','.join(other)}"))
+    return out

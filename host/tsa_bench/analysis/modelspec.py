@@ -1,15 +1,19 @@
-"""Free parameters of the judged model and of each candidate effect, with physical bounds.
+"""Free parameters of the judged model, with search ranges and weak priors; plant-config access.
 
 Units: every bound is in the parameter's own units (``tsa-bench effects``).
 
-Contract: a :class:`ParamSpec` maps one plant-config entry (``"geometry.<key>"`` for
-the plant's top-level keys, ``"<effect>.<param>"`` otherwise) to an optimiser variable
-``u`` in [0, 1], linearly or logarithmically between ``lo`` and ``hi``.
-:func:`baseline_specs` lists the calibrated parameters of whatever effects a model
-enables (geometry always); :data:`CANDIDATE_SPECS` the parameters freed when a
-candidate effect is switched on; :data:`SCREEN_VARIANTS` a few parameter sets per
-candidate used to compute its signature (an effect whose default does not show on the
-data, e.g. missed steps at 0.4 N m, still gets a fair screen).
+Contract: a :class:`ParamSpec` maps one plant-config entry (``"geometry.<key>"`` for the
+plant's top-level keys, ``"<effect>.<param>"`` otherwise) to an optimiser variable ``u``
+in [0, 1], linearly or logarithmically between ``lo`` and ``hi``. ``hard_lo``/``hard_hi``
+mark bounds that are physical limits (a non-negative coefficient at 0); ending at any
+other bound means the data want a value outside the plausible range, which the engine
+reports. ``prior`` sets a weak Gaussian prior around the model's own value: its standard
+deviation in log units for log parameters (a factor of 10), and for linear ones the larger
+of ``prior`` and the value itself (a factor-of-two belief). It only decides directions the
+data leave flat (untwisted length and stiffness from a single load; a wear rate that one
+twist and untwist cannot tell from the contact term). The ranges cover
+the thesis's strings (3- to 8-ply, Scheme 1 and 2, 3-12 ohm, 150-400 mm) with margin.
+:func:`baseline_specs` lists the calibrated parameters of whatever a model enables.
 """
 
 from __future__ import annotations
@@ -20,10 +24,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from tsa_bench.sim.effects import EFFECTS
+from tsa_bench.sim.effects import EFFECTS, FORMS, effect_class
 
 #: Effects never judged as causes (measurement, not physics).
 SENSOR_EFFECTS = ("sensor_noise", "quantisation")
+LN10 = math.log(10.0)
 
 
 @dataclass(frozen=True)
@@ -32,6 +37,9 @@ class ParamSpec:
     lo: float
     hi: float
     log: bool = False
+    hard_lo: bool = False
+    hard_hi: bool = False
+    prior: float = 0.0   # prior std (log units when log); 0: none
 
     def to_value(self, u: float) -> float:
         u = min(1.0, max(0.0, float(u)))
@@ -45,65 +53,44 @@ class ParamSpec:
             return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
         return min(1.0, max(0.0, (value - self.lo) / (self.hi - self.lo)))
 
+    def prior_sd(self, centre: float) -> float:
+        """Prior standard deviation (log units for log parameters); for linear ones ``prior``
+        is a floor and the prior is as wide as the centre itself (a factor-of-two belief)."""
+        return self.prior if self.log else max(self.prior, abs(centre))
 
-# relative bounds (x value in the model) for the baseline's calibrated parameters
-_REL = {
-    "geometry.untwisted_length_mm": (0.9, 1.1, False),
-    "geometry.radius_mm": (0.5, 2.0, True),
-    "geometry.resistance_ohm": (0.8, 1.25, False),
-    "string_compliance.stiffness_N": (0.3, 3.0, True),
-    "thermal_contraction.strain_per_K": (0.5, 2.0, False),
-}
-# absolute bounds, for parameters that may sensibly cross zero or be zero
-_ABS = {
-    "resistance_length.ohm_per_mm": (-0.05, 0.1, False),
-    "resistance_length.contact_ohm_per_turn": (-0.01, 0.01, False),
-}
+    def prior_residual(self, value: float, centre: float) -> float:
+        if self.prior <= 0:
+            return 0.0
+        if self.log:
+            return (math.log(max(value, 1e-300)) - math.log(max(centre, 1e-300))) / self.prior
+        return (value - centre) / self.prior_sd(centre)
 
-#: Parameters freed when a candidate effect is switched on (absolute physical bounds).
-CANDIDATE_SPECS: dict[str, tuple[ParamSpec, ...]] = {
-    "missed_steps": (ParamSpec("missed_steps.holding_torque_Nm", 1e-4, 0.5, True),),
-    "thermal_dynamics": (ParamSpec("thermal_dynamics.thermal_resistance_K_per_W", 0.5, 30.0, True),
-                         ParamSpec("thermal_dynamics.heat_capacity_J_per_K", 0.03, 3.0, True),
-                         ParamSpec("thermal_dynamics.cooling_time_constant_s", 3.0, 300.0, True)),
-    "load_dependence": (ParamSpec("load_dependence.stiffness_softening", 0.0, 1.5),),
-    "twist_hysteresis": (ParamSpec("twist_hysteresis.play_turns", 0.0, 3.0),),
-    "length_creep": (ParamSpec("length_creep.strain_per_N", 0.0, 0.006),
-                     ParamSpec("length_creep.time_constant_s", 10.0, 2000.0, True)),
-    "resistance_hysteresis": (ParamSpec("resistance_hysteresis.ohm_per_mm", 0.0, 0.08),
-                              ParamSpec("resistance_hysteresis.alpha_mm", 0.1, 6.0, True)),
-    "resistance_transient_decay": (ParamSpec("resistance_transient_decay.b1_ohm", -0.01, 0.002),
-                                   ParamSpec("resistance_transient_decay.b2_ohm", -0.15, 0.02)),
-    "resistance_creep": (ParamSpec("resistance_creep.ohm_per_turn", 0.0, 2e-4),),
-    "resistance_temperature": (ParamSpec("resistance_temperature.alpha_per_K", -2e-3, 4e-3),),
-}
-
-#: Parameter sets used for screening signatures (besides the effect's defaults).
-SCREEN_VARIANTS: dict[str, tuple[dict[str, float], ...]] = {
-    "missed_steps": ({"holding_torque_Nm": 5e-4}, {"holding_torque_Nm": 1e-3}, {"holding_torque_Nm": 2e-3},
-                     {"holding_torque_Nm": 4e-3}),
-    "thermal_dynamics": ({}, {"cooling_time_constant_s": 8.0}, {"cooling_time_constant_s": 100.0}),
-    "load_dependence": ({},),
-    "twist_hysteresis": ({}, {"play_turns": 1.0}),
-    "length_creep": ({}, {"time_constant_s": 40.0}, {"time_constant_s": 700.0}),
-    "resistance_hysteresis": ({}, {"alpha_mm": 3.0}),
-    "resistance_transient_decay": ({},),
-    "resistance_creep": ({},),
-    "resistance_temperature": ({},),
-}
+    def with_range(self, v: float) -> "ParamSpec":
+        """The spec widened (softly) to contain ``v``."""
+        lo = min(self.lo, v) if not self.log or v > 0 else self.lo
+        hi = max(self.hi, v)
+        return ParamSpec(self.key, lo, hi, self.log, self.hard_lo, self.hard_hi, self.prior)
 
 
-def candidate_effects(plant_cfg: Mapping[str, Any]) -> list[str]:
-    """Library effects the model leaves off (sensor effects excluded)."""
-    on = enabled_effects(plant_cfg)
-    return [n for n in EFFECTS if n not in on and n not in SENSOR_EFFECTS and n in CANDIDATE_SPECS]
+#: The judged model's own parameters (always calibrated when the effect is on).
+BASE_SPECS: dict[str, ParamSpec] = {s.key: s for s in (
+    ParamSpec("geometry.untwisted_length_mm", 40.0, 2000.0, True, prior=LN10),
+    ParamSpec("geometry.radius_mm", 0.01, 10.0, True, prior=LN10),
+    ParamSpec("geometry.resistance_ohm", 0.05, 500.0, True, prior=LN10),
+    ParamSpec("string_compliance.stiffness_N", 0.5, 1e5, True, hard_hi=True, prior=LN10),  # 1e5 N: inextensible
+    ParamSpec("thermal_contraction.strain_per_K", 0.0, 0.02, hard_lo=True, prior=5e-4),
+    ParamSpec("resistance_length.ohm_per_mm", -1.0, 1.0, prior=0.005),
+    ParamSpec("resistance_length.contact_ohm_per_turn", -0.2, 0.2, prior=5e-4),
+)}
 
 
 def enabled_effects(plant_cfg: Mapping[str, Any]) -> list[str]:
-    """Names of the effects the plant config switches on (omitted effects default on)."""
+    """Effects the plant config switches on: library effects (omitted = on) and named forms."""
     items = plant_cfg.get("effects") or {}
     out = []
-    for name in EFFECTS:
+    for name in list(EFFECTS) + list(FORMS):
+        if name in FORMS and name not in items:
+            continue
         cfg = items.get(name, {})
         if isinstance(cfg, bool):
             on = cfg
@@ -125,7 +112,7 @@ def get_value(plant_cfg: Mapping[str, Any], key: str) -> float:
     cfg = (plant_cfg.get("effects") or {}).get(head) or {}
     if isinstance(cfg, Mapping) and name in cfg:
         return float(cfg[name])
-    return float(getattr(EFFECTS[head].Params(), name))
+    return float(getattr(effect_class(head).Params(), name))
 
 
 def set_values(plant_cfg: Mapping[str, Any], values: Mapping[str, float]) -> dict:
@@ -150,23 +137,21 @@ def switch(plant_cfg: Mapping[str, Any], name: str, on: bool, params: Mapping[st
 
 
 def baseline_specs(plant_cfg: Mapping[str, Any]) -> list[ParamSpec]:
-    """Calibrated parameters of the model: geometry plus its enabled effects' free parameters."""
+    """Calibrated parameters of a model: geometry plus its enabled effects' free parameters,
+    each range widened to contain the model's own value."""
+    from tsa_bench.analysis.families import FORM_SPECS
+
     on = set(enabled_effects(plant_cfg))
     specs: list[ParamSpec] = []
-    for key, (a, b, log) in _REL.items():
+    for key, spec in BASE_SPECS.items():
         head = key.split(".")[0]
         if head != "geometry" and head not in on:
             continue
-        v = get_value(plant_cfg, key)
-        if v <= 0:
-            continue
-        specs.append(ParamSpec(key, a * v, b * v, log))
-    for key, (a, b, log) in _ABS.items():
-        if key.split(".")[0] in on:
-            v = get_value(plant_cfg, key)
-            specs.append(ParamSpec(key, min(a, v), max(b, v), log))
+        specs.append(spec.with_range(get_value(plant_cfg, key)))
     for name in on:
-        for s in CANDIDATE_SPECS.get(name, ()):
-            v = get_value(plant_cfg, s.key)
-            specs.append(ParamSpec(s.key, min(s.lo, v), max(s.hi, v), s.log))
+        for s in FORM_SPECS.get(name, ()):
+            # a weak prior around the judged model's own value (used where it gives a centre)
+            prior = LN10 if s.log else (s.hi - s.lo) / 200.0
+            specs.append(ParamSpec(s.key, s.lo, s.hi, s.log, s.hard_lo, s.hard_hi, prior).with_range(
+                get_value(plant_cfg, s.key)))
     return specs

@@ -41,7 +41,10 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
         out = simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving, seed=0)
         return out["length_mm"], out["resistance_ohm"]
     idx = np.asarray(idx)
-    run_idx, pos = _with_context(inp, idx)
+    warm = None
+    if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
+        warm = _warm(inp)
+    run_idx, pos = _with_context(inp, idx, warm=warm)
     c = np.cumsum(inp.moving.astype(np.int64))
     prev = np.r_[-1, run_idx[:-1]]
     moving = (c[run_idx] - np.where(prev >= 0, c[np.maximum(prev, 0)], 0)) > 0
@@ -49,18 +52,30 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
     return out["length_mm"][pos], out["resistance_ohm"][pos]
 
 
-def _with_context(inp: RunInputs, idx: np.ndarray, n_context: int = CONTEXT) -> tuple[np.ndarray, np.ndarray]:
+def _warm(inp: RunInputs, after_s: float = 300.0) -> np.ndarray:
+    """Samples while the heater is on or within ``after_s`` of it (the strings' temperature moves)."""
+    on = np.where(inp.volts > 0, np.arange(len(inp)), -1)
+    np.maximum.accumulate(on, out=on)
+    return (on >= 0) & (inp.t - inp.t[np.maximum(on, 0)] <= after_s)
+
+
+def _with_context(inp: RunInputs, idx: np.ndarray, n_context: int = CONTEXT, warm: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Samples to simulate for outputs at ``idx`` (sorted), and where ``idx`` sits in them.
 
     Some plant state lags one sample (load_dependence's stiffness uses the previous
     sample's contraction), so where the twist or load changed since the previous kept
-    sample the ``n_context`` samples before are simulated too (not returned): that lag
-    then acts at the true sample spacing and its error decays before the kept sample.
+    sample, or (``warm``) the temperature may have, the ``n_context`` samples before are
+    simulated too (not returned): that lag then acts at the true sample spacing and its
+    error decays before the kept sample.
     """
     if len(idx) < 2 or n_context <= 0:
         return idx, np.arange(len(idx))
     tw, ld = inp.turns[idx], inp.load_g[idx]
-    jump = np.flatnonzero((tw[1:] != tw[:-1]) | (ld[1:] != ld[:-1])) + 1
+    changed = (tw[1:] != tw[:-1]) | (ld[1:] != ld[:-1])
+    if warm is not None:
+        changed |= warm[idx[1:]]
+    jump = np.flatnonzero(changed) + 1
     if len(jump) == 0:
         return idx, np.arange(len(idx))
     lo = np.maximum(idx[jump - 1] + 1, idx[jump] - n_context)
@@ -124,17 +139,3 @@ def _post_stop_windows(inp: RunInputs, stop: int, budget: int, width: int = 12) 
     pick = np.unique(np.linspace(0, len(stops) - 1, n_win).astype(int))
     parts = [np.arange(stops[i] - 1, stops[i] + w[i]) for i in pick]
     return np.concatenate(parts) if parts else np.zeros(0, int)
-
-
-def noise_level(x: np.ndarray, mask: np.ndarray | None = None) -> float:
-    """Sensor noise std from first differences (trimmed, robust to steps and quantisation)."""
-    d = np.diff(x)
-    ok = np.isfinite(d)
-    if mask is not None:
-        ok &= mask[1:] & mask[:-1]
-    d = d[ok]
-    if len(d) < 10:
-        return float("nan")
-    d2 = np.sort(d * d)
-    d2 = d2[: max(1, int(0.95 * len(d2)))]
-    return float(np.sqrt(0.5 * np.mean(d2) / 0.79))  # 0.79: second moment kept by a 95 % trim of a Gaussian

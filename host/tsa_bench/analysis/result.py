@@ -1,6 +1,10 @@
 """Result types of :func:`tsa_bench.analysis.diagnose` (shared with the report and CLI).
 
-Units: RMSE in the output's units (length mm, resistance ohm); scores are fractions.
+Units: RMSE in the output's units (length mm, resistance ohm); improvements in noise
+variances per sample; confidences and shares are fractions.
+
+The JSON (``DiagnoseResult.to_json``, schema ``tsa-bench/diagnose`` version 2) is
+documented in docs/diagnose.md.
 """
 
 from __future__ import annotations
@@ -11,17 +15,22 @@ from typing import Any
 
 import numpy as np
 
+SCHEMA = "tsa-bench/diagnose"
+SCHEMA_VERSION = 2
+VERDICTS = ("explained", "named", "unexplained", "model_mismatch")
 
-def _plain(x: Any) -> Any:
+
+def plain(x: Any) -> Any:
+    """JSON-safe copy: numpy scalars and arrays to Python, non-finite floats to None."""
     if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
+        return {str(k): plain(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
+        return [plain(v) for v in x]
     if isinstance(x, np.ndarray):
-        return [_plain(v) for v in x.tolist()]
+        return [plain(v) for v in x.tolist()]
     if isinstance(x, (np.bool_, bool)):
         return bool(x)
-    if isinstance(x, (np.integer,)):
+    if isinstance(x, np.integer):
         return int(x)
     if isinstance(x, (float, np.floating)):
         x = float(x)
@@ -31,11 +40,10 @@ def _plain(x: Any) -> Any:
 
 @dataclass
 class Candidate:
-    """One candidate cause: a library effect (``kind="effect"``) or a generic signal (``"signal"``).
+    """One candidate cause: a library effect in one form (``kind="effect"``).
 
-    ``score``: fraction of the training residual variance (each output in units of its
-    noise level, outputs pooled) the candidate explains -- by its refit model when it
-    was refitted, else by a least-squares regression of the residual on its signature.
+    ``score``: fraction of the training residual (noise-normalised, outputs pooled) its
+    signature explains at screening (or its refit model, when refitted).
     """
 
     name: str
@@ -53,9 +61,31 @@ class Gain:
 
 
 @dataclass
+class NamedCause:
+    effect: str
+    form: str
+    variant: str                      # plant effect / form name
+    output: str
+    confidence: float
+    form_confidence: float
+    own_improvement: float            # held-out, noise variances per sample, in the final model
+    ci95: tuple[float, float]
+    relative_gain: dict[str, float]   # held-out RMSE gain per output when it was added
+    params: dict[str, float]
+    caveats: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"effect": self.effect, "form": self.form, "variant": self.variant, "output": self.output,
+                "confidence": self.confidence, "form_confidence": self.form_confidence,
+                "own_improvement_noise_var": self.own_improvement, "own_improvement_ci95": list(self.ci95),
+                "heldout_gain": self.relative_gain, "params": self.params, "caveats": self.caveats}
+
+
+@dataclass
 class DiagnoseResult:
-    cause: str | None
-    causes: list[str]
+    verdict: str
+    summary: str
+    named: list[NamedCause]
     candidates: list[Candidate]
     gain: list[Gain]
     residual_tests: dict
@@ -64,18 +94,45 @@ class DiagnoseResult:
     calibrated: dict
     series: dict
     notes: list[str]
+    unexplained: list[dict] = field(default_factory=list)
+    mismatch: list[dict] = field(default_factory=list)
+    partial: list[dict] = field(default_factory=list)
+    noise: dict = field(default_factory=dict)
+    calibration: dict = field(default_factory=dict)
+    holdout: dict = field(default_factory=dict)
+    iterations: list[dict] = field(default_factory=list)
+    provenance: dict = field(default_factory=dict)
+    outputs: tuple[str, ...] = ("length", "resistance")
+
+    @property
+    def causes(self) -> list[str]:
+        """Named effects, dominant first."""
+        return [c.effect for c in self.named]
+
+    @property
+    def cause(self) -> str | None:
+        return self.named[0].effect if self.named else None
 
     def to_json(self) -> dict:
-        return _plain({
-            "cause": self.cause,
-            "causes": list(self.causes),
+        return plain({
+            "schema": SCHEMA, "schema_version": SCHEMA_VERSION,
+            "verdict": self.verdict, "summary": self.summary,
+            "cause": self.cause, "causes": self.causes,
+            "named": [c.to_json() for c in self.named],
+            "unexplained": self.unexplained, "mismatch": self.mismatch, "partial": self.partial,
+            "outputs": list(self.outputs),
             "candidates": [{"name": c.name, "kind": c.kind, "score": c.score, "evidence": c.evidence}
                            for c in self.candidates],
             "gain": [{"output": g.output, "heldout_rmse_before": g.heldout_rmse_before,
                       "heldout_rmse_after": g.heldout_rmse_after, "relative": g.relative} for g in self.gain],
+            "noise": self.noise,
             "residual_tests": self.residual_tests,
             "model_effects_before": self.model_effects_before,
             "model_effects_after": self.model_effects_after,
             "calibrated": self.calibrated,
+            "calibration": self.calibration,
+            "holdout": self.holdout,
+            "iterations": self.iterations,
+            "provenance": self.provenance,
             "notes": self.notes,
         })

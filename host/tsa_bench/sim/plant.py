@@ -32,7 +32,7 @@ import random
 from collections.abc import Mapping
 from typing import Any, Protocol
 
-from tsa_bench.sim.effects import (EFFECTS, Effect, PlantState, build_effect, canonical_order, check_keys,
+from tsa_bench.sim.effects import (EFFECTS, FORMS, Effect, PlantState, build_effect, canonical_order, check_keys,
                                    number_param, parse_effect_config, tsa_length_mm)
 from tsa_bench.sim.kinematics import NEWTON_PER_GRAM, TsaGeometry
 from tsa_bench.sim.readings import PlantReading
@@ -205,9 +205,10 @@ def plant_from_config(plant_cfg: Mapping[str, Any], seed: int | None = None) -> 
         items = {}
     if not isinstance(items, Mapping):
         raise ValueError("plant: 'effects' must be a mapping {effect name: {enabled: bool, parameter: value}}")
-    unknown = sorted(set(items) - set(EFFECTS))
+    unknown = sorted(set(items) - set(EFFECTS) - set(FORMS))
     if unknown:
-        raise ValueError(f"plant.effects: unknown effect(s) {unknown} (known: {', '.join(canonical_order())})")
+        raise ValueError(f"plant.effects: unknown effect(s) {unknown} (known: {', '.join(canonical_order())}; "
+                         f"alternative forms: {', '.join(FORMS)})")
     for name, cfg in items.items():
         parse_effect_config(name, cfg)  # validate everything, even switched-off effects
     rng = random.Random(seed)
@@ -215,6 +216,11 @@ def plant_from_config(plant_cfg: Mapping[str, Any], seed: int | None = None) -> 
     for name in canonical_order():
         sub = random.Random(rng.getrandbits(64))
         e = build_effect(name, items.get(name), sub)
+        if e is not None:
+            effects.append(e)
+    # alternative forms run only when the config names them (their seeds follow the library's)
+    for name in canonical_order([n for n in FORMS if n in items]):
+        e = build_effect(name, items[name], random.Random(rng.getrandbits(64)))
         if e is not None:
             effects.append(e)
     return TsaPlant(

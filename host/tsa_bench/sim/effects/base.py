@@ -124,11 +124,36 @@ def register_effect(cls_or_name: Any = None) -> Any:
     return deco
 
 
+#: Alternative physical forms of library effects (name -> class), e.g. missed steps whose
+#: pull-out torque falls with speed. A form is off unless a plant config names it; it
+#: runs in its stage after the library effects. ``cls.form_of`` names the effect it is a
+#: form of and ``cls.form`` the form (see :mod:`tsa_bench.sim.effects.forms_motor` etc.).
+FORMS: dict[str, type[Effect]] = {}
+
+
+def register_form(cls: type[Effect]) -> type[Effect]:
+    """Class decorator registering an alternative form (needs ``name``, ``stage``, ``form_of``, ``form``)."""
+    if not cls.name or cls.name in EFFECTS or cls.name in FORMS:
+        raise ValueError(f"{cls.__name__}: a form needs a new, unique name (got {cls.name!r})")
+    if cls.stage not in STAGES or cls.stage == "kinematics":
+        raise ValueError(f"plant effect form '{cls.name}': unknown stage {cls.stage!r}")
+    if getattr(cls, "form_of", None) not in EFFECTS or not getattr(cls, "form", ""):
+        raise ValueError(f"plant effect form '{cls.name}': form_of must name a library effect, and form be set")
+    FORMS[cls.name] = cls
+    return cls
+
+
+def effect_class(name: str) -> type[Effect] | None:
+    """The class of a library effect or of an alternative form, or None."""
+    return EFFECTS.get(name) or FORMS.get(name)
+
+
 def canonical_order(names: list[str] | tuple[str, ...] | None = None) -> list[str]:
-    """Effect names (all registered, or ``names``) in stage, then registration, order."""
-    registered = list(EFFECTS)
-    chosen = registered if names is None else [n for n in registered if n in set(names)]
-    return sorted(chosen, key=lambda n: (STAGES.index(EFFECTS[n].stage), registered.index(n)))
+    """Effect names (all registered library effects, or ``names``, which may include
+    forms) in stage, then registration, order (forms after the library effects)."""
+    registered = list(EFFECTS) + list(FORMS)
+    chosen = list(EFFECTS) if names is None else [n for n in registered if n in set(names)]
+    return sorted(chosen, key=lambda n: (STAGES.index(effect_class(n).stage), registered.index(n)))
 
 
 def number_param(params: Mapping[str, Any], key: str, where: str, default: float | None = None,
@@ -158,7 +183,7 @@ def check_keys(params: Mapping[str, Any], allowed: tuple[str, ...], where: str) 
 def parse_effect_config(name: str, cfg: Any) -> tuple[bool, Any]:
     """``(enabled, Params)`` from one ``plant.effects.<name>`` mapping (None = defaults)."""
     where = f"plant.effects.{name}"
-    cls = EFFECTS.get(name)
+    cls = effect_class(name)
     if cls is None:
         raise ValueError(f"plant.effects: unknown effect '{name}' (known: {', '.join(canonical_order())})")
     if cfg is None:
@@ -189,7 +214,7 @@ def parse_effect_config(name: str, cfg: Any) -> tuple[bool, Any]:
 def build_effect(name: str, cfg: Any, rng: random.Random) -> Effect | None:
     """The configured effect, or None if it is switched off."""
     enabled, params = parse_effect_config(name, cfg)
-    return EFFECTS[name](params, rng) if enabled else None
+    return effect_class(name)(params, rng) if enabled else None
 
 
 def describe_effect(cls: type[Effect]) -> dict[str, Any]:

@@ -1,0 +1,121 @@
+"""What one diagnosis holds fixed once the data are read: runs, outputs, noise, holdout,
+subsamples, resampling units; the engine's constants; residual tests of a replay.
+
+Units: length mm, resistance ohm; improvements in noise variances per sample.
+
+Contract: :class:`Context` builds the calibration subsample (:data:`N_CAL` samples over
+all runs) and the smaller one candidate refits use (:data:`N_REFIT`), the held-out
+resampling units, and offers ``scores`` (held-out unit scores of a config), ``compare``
+(block bootstrap, :mod:`tsa_bench.analysis.scoring`) and ``residual_tests`` (structure of
+a replay's residual per output, :mod:`tsa_bench.analysis.structure`). The constants are
+the decision rule's (docs/diagnose.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from tsa_bench.analysis.calibrate import Problem
+from tsa_bench.analysis.families import RunScale
+from tsa_bench.analysis.holdout import Holdout
+from tsa_bench.analysis.inputs import RunInputs
+from tsa_bench.analysis.modelspec import enabled_effects, get_value
+from tsa_bench.analysis.noise import RELEVANT, Noise
+from tsa_bench.analysis.replay import subsample
+from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
+from tsa_bench.analysis.signals import signal_bases
+from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
+
+#: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
+FLOOR = RELEVANT ** 2
+N_CAL = 2000          # calibration subsample (all runs)
+N_REFIT = 1000        # subsample for candidate refits (the named one is then polished on N_CAL)
+REFIT_MAX = 4         # forms refitted per iteration
+REFIT_NFEV = 20       # function evaluations per refit
+CONTENDER = 0.1       # other effects are refitted when their screen reaches this share of the leader's
+#: a form whose companion only acts through it (the resistance's temperature coefficient needs the
+#: strings to heat) is also refitted together with it
+COMPANIONS = {"thermal_dynamics": ("resistance_temperature",)}
+SCREEN_MIN = 0.01     # a form's signature must explain at least this share of the residual
+N_BOOT = 1000
+#: a candidate that makes an output's held-out error worse by more than HARM_REL of it (and the floor),
+#: in HARM_P of the resamples, is rejected: a cure must not damage another output noticeably
+HARM_P = 0.5
+HARM_REL = 0.1
+UNITS = {"length": "mm", "resistance": "ohm"}
+#: effects on the resistance alone are not candidates while the length error, through dR/dX,
+#: explains at least this share of the resistance residual's structure
+PROPAGATED = 0.5
+Progress = Callable[[str], None]
+
+
+def residual_structure(res: np.ndarray, noise: Noise, rate: float, bases: dict[str, np.ndarray], moving: np.ndarray) -> dict:
+    t = structure_test(res, noise, rate, bases)
+    t["ljung_box_p"] = ljung_box(res)[1]
+    t["jumps"] = jumps(res, noise, moving)
+    if not t["structured"]:
+        t["follows"] = []
+    return t
+
+
+class Context:
+    """Everything fixed once the inputs, holdout and noise are known (module docstring)."""
+
+    def __init__(self, inputs: list[RunInputs], outputs: tuple[str, ...], noise: dict[str, Noise], hold: Holdout,
+                 seed: int) -> None:
+        self.inputs, self.outputs, self.noise, self.hold, self.seed = inputs, outputs, noise, hold, seed
+        self.sigma = {o: noise[o].rms for o in outputs}
+        n_total = sum(len(r) for r in inputs)
+        idx = [subsample(r, len(r), max(300, N_CAL * len(r) // max(1, n_total))) for r in inputs]
+        self.problem = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
+        idx = [subsample(r, len(r), max(200, N_REFIT * len(r) // max(1, n_total))) for r in inputs]
+        self.small = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
+        self.units = all_units(inputs)
+        self.rate = float(np.median([r.rate_hz for r in inputs]))
+        self.moving = np.concatenate([r.moving for r in inputs])
+        self.kinds = {k for k, v in hold.kinds.items() if v["train"] + v["heldout"] > 0}
+        self.induced: set[str] = set()   # outputs structured only through the joint fit with the other
+        self.source: set[str] = set(outputs)   # outputs structured in the judged model (what may be blamed)
+        self.form_bars: dict[str, tuple[float, str]] = {}   # output -> (form spread of a named effect, its name)
+
+    def scores(self, cfg: Mapping[str, Any]) -> Scores:
+        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs)
+
+    def compare(self, a: Scores, b: Scores) -> Comparison:
+        return compare(a, b, FLOOR, N_BOOT, self.seed)
+
+    def residual_tests(self, sims: list[dict], r0: float) -> dict:
+        bases_runs = [signal_bases(r, r0) for r in self.inputs]
+        bases = {k: np.concatenate([b[k] for b in bases_runs]) for k in bases_runs[0]}
+        out = {}
+        for o in self.outputs:
+            res = np.concatenate([np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)])
+            out[o] = residual_structure(res, self.noise[o], self.rate, bases, self.moving)
+        return out
+
+
+def run_scale(ctx: Context, cfg: Mapping[str, Any]) -> RunScale:
+    from tsa_bench.analysis.quasistatic import static_length
+    from tsa_bench.sim.kinematics import NEWTON_PER_GRAM
+    tw = np.concatenate([r.turns for r in ctx.inputs])
+    ld = np.concatenate([r.load_g for r in ctx.inputs])
+    sel = np.linspace(0, len(tw) - 1, min(len(tw), 2000)).astype(int)
+    l0, r0 = get_value(cfg, "geometry.untwisted_length_mm"), get_value(cfg, "geometry.radius_mm")
+    k = get_value(cfg, "string_compliance.stiffness_N")
+    on = set(enabled_effects(cfg))
+    x = static_length(l0, r0, k, tw[sel], ld[sel], "string_compliance" in on, "radius_growth" in on)
+    r2 = r0 * r0 * (l0 / x if "radius_growth" in on else 1.0)
+    torque = ld[sel] * NEWTON_PER_GRAM * 2 * np.pi * np.abs(tw[sel]) * r2 / x * 1e-3
+    speeds = np.concatenate([(np.abs(np.diff(r.turns)) / np.maximum(np.diff(r.t), 1e-9))[r.moving[1:]]
+                             for r in ctx.inputs])
+    speed = [float(np.max(speeds, initial=0.0))]
+    typical = float(np.median(speeds[speeds > 0])) if np.any(speeds > 0) else 1.0
+    res_level = get_value(cfg, "geometry.resistance_ohm")
+    return RunScale(float(np.max(np.abs(tw))), float(np.max(torque, initial=0.0)), float(max(speed)), typical,
+                    float(sum(r.duration_s for r in ctx.inputs)), res_level,
+                    ctx.noise["resistance"].rms if "resistance" in ctx.outputs else 1e-3)
+
+

@@ -1,0 +1,37 @@
+"""Write a run file by the contract of docs/run-format.md, with plain h5py."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from tests.analysis.foreign.rig import G
+from tests.analysis.foreign.walks import History, segments_table
+
+
+def write(path: str | Path, h: History, length_mm: np.ndarray, resistance_ohm: np.ndarray,
+          drop: tuple[str, ...] = (), nan: tuple[str, ...] = ()) -> Path:
+    """The run file; ``drop`` leaves columns out, ``nan`` writes them as all NaN (broken inputs)."""
+    n = len(h)
+    cols = {"t": (h.t, "s"), "turns": (h.turns, "turn"), "length": (length_mm, "mm"),
+            "resistance": (resistance_ohm, "ohm"), "heater_voltage": (h.volts, "V"),
+            "load": (h.load_g * G / 1000.0, "N"), "segment": (h.segment, "1"), "motor_moving": (h.moving, "1"),
+            "counter": (np.arange(n, dtype=np.uint32), "1")}
+    p = Path(path)
+    with h5py.File(p, "w") as f:
+        f.attrs.update({"format": "tsa-bench/run", "format_version": "1.0", "created": "2025-03-01T12:00:00+00:00",
+                        "backend": "import", "firmware": "", "exit_status": "success",
+                        "reason": "independent generator"})
+        g = f.create_group("samples")
+        for name, (a, unit) in cols.items():
+            if name in drop:
+                continue
+            data = np.full(n, np.nan) if name in nan else a
+            g.create_dataset(name, data=data).attrs["units"] = unit
+        st = h5py.string_dtype()
+        dt = np.dtype([("index", "i4"), ("kind", st), ("t_start", "f8"), ("t_end", "f8"), ("completed", "u1"),
+                       ("cycle", "i4"), ("source", st), ("params", st)])
+        f.create_dataset("segments", data=np.array(segments_table(h), dtype=dt))
+    return p
