@@ -100,17 +100,18 @@ def candidate_effects(plant_cfg: Mapping[str, Any]) -> list[str]:
 
 
 def enabled_effects(plant_cfg: Mapping[str, Any]) -> list[str]:
-    """Names of the effects the plant config switches on (omitted effects default on)."""
+    """Names of the effects the plant config switches on (omitted effects take ``default_enabled``)."""
     items = plant_cfg.get("effects") or {}
     out = []
     for name in EFFECTS:
         cfg = items.get(name, {})
+        default = EFFECTS[name].default_enabled
         if isinstance(cfg, bool):
             on = cfg
         elif cfg is None:
-            on = True
+            on = default
         else:
-            on = bool(cfg.get("enabled", True))
+            on = bool(cfg.get("enabled", default))
         if on:
             out.append(name)
     return out

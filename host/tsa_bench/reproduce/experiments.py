@@ -55,6 +55,19 @@ TRAINING_S = (6.0, 32.0)
 MAX_VOLTAGE_V = 8.0
 
 
+LIFETIME_CYCLES = 596
+
+
+def lifetime_steps(cycles: int) -> list[tuple]:
+    """2.5.2: 15 turns, 2 min rest, then ``cycles`` of 15 -> 25 -> 15 turns in 2-turn steps with 1 s pauses."""
+    targets = [17.0, 19.0, 21.0, 23.0, 25.0, 23.0, 21.0, 19.0, 17.0, 15.0]
+    steps: list[tuple] = [("hold", 5.0), ("move", 15.0), ("hold", 120.0)]
+    for _ in range(cycles):
+        for x in targets:
+            steps += [("move", x), ("hold", 1.0)]
+    return steps
+
+
 def preset_plant(name: str, bench_dir: Path = BENCH_DIR) -> dict[str, Any]:
     """The ``plant`` mapping of ``<bench_dir>/<name>.yaml``."""
     doc = yaml.safe_load((bench_dir / f"{name}.yaml").read_text(encoding="utf-8"))
@@ -117,10 +130,12 @@ class Lab:
     """Simulates and caches the thesis experiments on a set of preset plants (module contract)."""
 
     def __init__(self, plants: dict[str, dict[str, Any]] | None = None, seed: int = 0, quick: bool = False,
-                 bench_dir: Path = BENCH_DIR) -> None:
+                 bench_dir: Path = BENCH_DIR, manipulator: dict[str, Any] | None = None) -> None:
         self.plants = {p: preset_plant(p, bench_dir) for p in PRESETS}
         if plants:
             self.plants.update(plants)
+        #: the soft manipulator's settings (None: configs/manipulator/thesis.yaml)
+        self.manipulator = manipulator
         self.seed = seed
         self.quick = quick
         self._cache: dict[Any, Any] = {}
@@ -203,13 +218,7 @@ class Lab:
         return self.simulate(f"stiffness-{ply}ply", PRESET_FOR[f"ply{ply}"], h, settle_s=60.0)
 
     def lifetime(self) -> SimRun:
-        cycles = 60 if self.quick else 596
-        targets = [17.0, 19.0, 21.0, 23.0, 25.0, 23.0, 21.0, 19.0, 17.0, 15.0]
-        steps: list[tuple] = [("hold", 5.0), ("move", 15.0), ("hold", 120.0)]
-        for _ in range(cycles):
-            for x in targets:
-                steps += [("move", x), ("hold", 1.0)]
-        h = history(steps, dt_s=0.2, load_g=550.0)
+        h = history(lifetime_steps(60 if self.quick else LIFETIME_CYCLES), dt_s=0.2, load_g=550.0)
         return self.simulate("lifetime", PRESET_FOR["transient"], h, settle_s=0.0)
 
     def thermal(self, ply: int, load_g: float) -> SimRun:

@@ -7,6 +7,7 @@ L0, r, w0 as measured in 4.2.3; the P controller of 4.2.4; the motor speed per v
 or ``lab.manipulator`` when the calibration supplies one. :func:`manipulator_quantity`
 computes:
 
+* ``L0``, ``r``, ``w0``: the geometry the model is built from (m);
 * ``angle_range``: eq. 4.8 from 3 to 18 motor rotations (the characterisation range);
 * ``rise_time``: 10-90 % rise time of the closed loop for a step to ``setpoint_deg``
   from rest at 3 rotations (Kp = 5, 2.4-12 V, the motor speed proportional to voltage);
@@ -40,6 +41,8 @@ def manipulator_quantity(lab: Any, quantity: str, args: dict[str, Any]) -> float
     geom = ManipulatorGeometry(**{k: float(v) for k, v in cfg["geometry"].items()})
     ctl = cfg.get("control", {})
     speed_per_v = float(ctl.get("motor_rev_per_s_per_V", 1.90 / 3.6))
+    if quantity in ("L0", "r", "w0"):
+        return {"L0": geom.l0_m, "r": geom.r_m, "w0": geom.w0_m}[quantity]
     if quantity == "angle_range":
         th = np.degrees(bending_angle(np.array([3.0, 18.0]) * TWO_PI, geom))
         return float(th[1] - th[0])

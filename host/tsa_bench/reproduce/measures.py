@@ -72,7 +72,7 @@ def _transient_unit(a: dict[str, Any], c: dict[str, Any]) -> str:
 
 _PARAM_UNITS = {"Lambda": "1/s", "c": "ohm/mm", "a": "ohm/mm", "b1": "ohm", "b2": "ohm", "rho0": "ohm", "rho1": "1/ohm",
                 "rho2": "1", "rho3": "ohm", "phi0": "ohm", "phi1": "1/ohm", "phi2": "1", "phi3": "ohm"}
-_MANIP_UNITS = {"angle_range": "deg", "speed_at_3V6": "rev/s", "velocity_span": "deg", "rise_time": "s",
+_MANIP_UNITS = {"L0": "m", "r": "m", "w0": "m", "angle_range": "deg", "speed_at_3V6": "rev/s", "velocity_span": "deg", "rise_time": "s",
                 "sse_mean": "deg", "sse_max": "deg"}
 EXPERIMENTS = ("sweep", "heat", "scheme")
 

@@ -18,8 +18,9 @@ import numpy as np
 from tsa_bench.models.fitting import fit, quasi_static_mask
 from tsa_bench.models.polynomial import PolynomialModel
 from tsa_bench.models.preisach import PreisachModel
-from tsa_bench.reproduce.experiments import (DURATIONS_S, LOADS, SCHEME_LOADS, TRAINING_S, Lab, SimRun,
-                                             plateaus, preset_for)
+from tsa_bench.reproduce.experiments import (DURATIONS_S, LIFETIME_CYCLES, LOADS, SCHEME_LOADS, TRAINING_S, Lab,
+                                             SimRun, lifetime_steps, plateaus, preset_for)
+from tsa_bench.reproduce.runs import history
 from tsa_bench.reproduce.measures import MeasureError
 
 LEVELS = 20
@@ -165,14 +166,28 @@ def _strain_parts(lab: Lab, ply: int, load: float) -> tuple[float, float, float]
     return first, cold[0], min(hot)
 
 
+def _passive(lab: Lab, ply: int, load: float) -> float:
+    """Eq. 2.2 at full twist from the twist sweep (twisting only, 2.4.2)."""
+    sim = lab.sweep(ply, load)
+    h = sim.hist
+    pl = plateaus(h, sim.length)
+    turns = [float(h["turns"][h["segment"] == s][0]) for s, _ in pl]
+    xl = pl[0][1]
+    xt = pl[int(np.argmax(turns))][1]
+    return (xl - xt) / xt
+
+
 def strain(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
+    """Passive strain from the twist sweep; active and thermal from the heating run (2.4.3)."""
     ply = int(c["ply"])
     vals = []
     for load in _list(c.get("load_g", LOADS[ply])):
+        if a["kind"] == "passive":
+            vals.append(_passive(lab, ply, float(load)) * 100.0)
+            continue
         xl, xt, xh = _strain_parts(lab, ply, float(load))
         passive, active, thermal = (xl - xt) / xt, (xl - xh) / xh, (xt - xh) / xh
-        vals.append({"passive": passive, "active": active, "thermal": thermal,
-                     "increase": active - passive}[a["kind"]] * 100.0)
+        vals.append({"active": active, "thermal": thermal, "increase": active - passive}[a["kind"]] * 100.0)
     return float(np.mean(vals))
 
 
@@ -362,11 +377,12 @@ def run_level(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
 
 
 def lifetime(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
+    if a["quantity"] == "duration":  # the full protocol's duration, even for a quick Lab
+        t = history(lifetime_steps(LIFETIME_CYCLES), dt_s=0.2, load_g=550.0)["t"]
+        return float((t[-1] - t[0]) / 3600.0)
     sim = lab.lifetime()
     h = sim.hist
     t = h["t"]
-    if a["quantity"] == "duration":
-        return float((t[-1] - t[0]) / 3600.0)
     seg, turns, moving = h["segment"], h["turns"], h["motor_moving"].astype(bool)
     ends = np.flatnonzero((np.diff(seg, append=seg[-1] + 1) != 0) & ~moving & (np.abs(turns - 15.0) < 1e-9))
     t15 = t[ends]

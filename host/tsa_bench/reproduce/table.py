@@ -108,6 +108,35 @@ def judge(rec: Record, sim: float) -> bool:
     return 1.0 / tol <= ratio <= tol
 
 
+def residual(rec: Record, sim: float) -> float:
+    """How far ``sim`` (record unit) is from the record, in units of its tolerance; ``|r| <= 1`` agrees.
+
+    ``gap / tolerance`` (abs, sd), ``gap / (rel |value|)``, ``log(sim / value) / log(factor)``;
+    for bounds and ranges 0 inside and the distance outside in units of the bound's
+    magnitude (plus 0.05, so a value on the wrong side never counts as agreeing).
+    """
+    if not math.isfinite(sim):
+        return 1e3
+    if rec.range is not None:
+        lo, hi = rec.range
+        return 0.0 if lo <= sim <= hi else (sim - (hi if sim > hi else lo)) / (hi - lo) + math.copysign(
+            1.0, sim - hi if sim > hi else sim - lo)
+    v = rec.value
+    if rec.relation in ("<", "<=", ">", ">="):
+        ok = {"<": sim < v, "<=": sim <= v, ">": sim > v, ">=": sim >= v}[rec.relation]
+        scale = abs(v) if v else 1.0
+        return 0.0 if ok else (sim - v) / scale + math.copysign(1.05, sim - v)
+    t = rec.tolerance or {"kind": "abs", "value": next(iter(rec.uncertainty.values()))}
+    kind, tol = t["kind"], t["value"]
+    if kind in ("abs", "sd"):
+        return (sim - v) / tol if tol > 0 else (0.0 if sim == v else 1e3)
+    if kind == "rel":
+        return (sim - v) / (tol * abs(v))
+    if v == 0 or sim == 0 or (sim > 0) != (v > 0):
+        return 0.0 if sim == v else 1e3
+    return math.log(sim / v) / math.log(tol)
+
+
 def evaluate(records: list[Record], lab: Any, plan: CalibrationPlan,
              progress: Any = None) -> list[Row]:
     """One row per record, in record order (module contract)."""
