@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from tsa_bench.reproduce.calibrate import Settings, calibrate, load_settings, write_calibration
+from tsa_bench.reproduce.calibrate import Settings, calibrate, describe, load_settings, write_calibration
 from tsa_bench.reproduce.experiments import PRESETS
 from tsa_bench.reproduce.plan import load_plan
 from tsa_bench.reproduce.records import load_records
@@ -59,6 +59,7 @@ def main() -> int:
     ap.add_argument("--only", action="append", help="run only the fit with this name (repeatable)")
     ap.add_argument("--maxfev", type=int, default=250, help="simulations per fit at most (default 250)")
     ap.add_argument("--seed", type=int, default=0, help="noise seed of the simulated runs (default 0)")
+    ap.add_argument("--passes", type=int, default=2, help="times the sequence of fits is run (default 2)")
     ap.add_argument("--compare-rev", help="no fitting: compare the presets at this git revision with the files now")
     args = ap.parse_args()
 
@@ -82,14 +83,10 @@ def main() -> int:
         before = load_settings()
         label = "presets before this calibration"
         after, results, extensions = calibrate(plan, records, before, seed=args.seed, maxfev=args.maxfev,
-                                               only=args.only, log=lambda m: print(m, flush=True))
+                                               only=args.only, passes=args.passes, log=lambda m: print(m, flush=True))
         print("\nfits (parameter: start -> fitted):")
         for res in results:
-            print(f"- {res.fit.name}: cost {res.cost_start:.2f} -> {res.cost:.2f} in {res.evaluations} simulations")
-            for (preset, path), v in res.values.items():
-                print(f"    {preset}: {path}: {res.start[(preset, path)]:.5g} -> {v:.5g}")
-            for rid, r in res.residuals.items():
-                print(f"    fitted record {rid}: residual {r:+.2f} ({'agrees' if abs(r) <= 1 else 'outside tolerance'})")
+            print("\n".join(describe(res)))
         for ext in extensions:
             print(f"- extension {ext.effect} ({ext.fit}): held-out records agreeing {ext.agree_without} -> "
                   f"{ext.agree_with} of {len(ext.held_out)}, summed |residual| {ext.residual_without:.1f} -> "

@@ -85,16 +85,19 @@ class Settings:
     def copy(self) -> Settings:
         return Settings(copy.deepcopy(self.plants), copy.deepcopy(self.manipulator))
 
-    def get(self, preset: str, path: str) -> float:
+    def get(self, preset: str | tuple[str, ...], path: str) -> float:
+        """A parameter's value (of the first preset, when several share it)."""
+        preset = preset[0] if isinstance(preset, tuple) else preset
         return get_path(self.manipulator if preset == MANIPULATOR else self.plants[preset], path)
 
-    def set(self, preset: str, path: str, value: float) -> None:
-        """Set a parameter; fitting an effect's parameter switches that effect on."""
-        cfg = self.manipulator if preset == MANIPULATOR else self.plants[preset]
-        set_path(cfg, path, value)
-        parts = path.split(".")
-        if preset != MANIPULATOR and len(parts) == 3 and parts[0] == "effects":
-            cfg["effects"][parts[1]].setdefault("enabled", True)
+    def set(self, preset: str | tuple[str, ...], path: str, value: float) -> None:
+        """Set a parameter in one preset or several; fitting an effect's parameter switches that effect on."""
+        for name in (preset if isinstance(preset, tuple) else (preset,)):
+            cfg = self.manipulator if name == MANIPULATOR else self.plants[name]
+            set_path(cfg, path, value)
+            parts = path.split(".")
+            if name != MANIPULATOR and len(parts) == 3 and parts[0] == "effects":
+                cfg["effects"][parts[1]].setdefault("enabled", True)
 
     def lab(self, seed: int = 0, quick: bool = False) -> Lab:
         return Lab(copy.deepcopy(self.plants), seed=seed, quick=quick, manipulator=copy.deepcopy(self.manipulator))
@@ -121,7 +124,7 @@ def simulated_values(records: list[Record], lab: Lab) -> dict[str, float]:
 class _Space:
     """[0, 1] coordinates of a fit's parameters (log scale for wide positive bounds)."""
 
-    def __init__(self, params: dict[tuple[str, str], tuple[float, float]]) -> None:
+    def __init__(self, params: dict[tuple[tuple[str, ...], str], tuple[float, float]]) -> None:
         self.keys = list(params)
         self.bounds = [params[k] for k in self.keys]
         self.log = [lo > 0 and hi / lo > 10 for lo, hi in self.bounds]
@@ -140,8 +143,8 @@ class _Space:
 @dataclass
 class FitResult:
     fit: Fit
-    start: dict[tuple[str, str], float]
-    values: dict[tuple[str, str], float]
+    start: dict[tuple[tuple[str, ...], str], float]
+    values: dict[tuple[tuple[str, ...], str], float]
     cost_start: float
     cost: float
     evaluations: int
@@ -210,43 +213,70 @@ def held_out_residuals(records: list[Record], plan: CalibrationPlan, settings: S
     return {r.id: residual(r, sims[r.id]) for r in recs}
 
 
-def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, seed: int = 0, maxfev: int = 200,
-              only: list[str] | None = None, log: Callable[[str], None] | None = None
-              ) -> tuple[Settings, list[FitResult], list[ExtensionReport]]:
-    """Run the plan's fits in order (``only``: just the fits with these names).
+def describe(result: FitResult) -> list[str]:
+    """Lines saying what a fit did: cost, parameters start -> fitted, residual of each fitted record."""
+    lines = [f"- {result.fit.name}: cost {result.cost_start:.2f} -> {result.cost:.2f} in {result.evaluations} simulations"]
+    for (presets, path), v in result.values.items():
+        lines.append(f"    {','.join(presets)}: {path}: {result.start[(presets, path)]:.5g} -> {v:.5g}")
+    for rid, r in result.residuals.items():
+        lines.append(f"    fitted record {rid}: residual {r:+.2f} ({'agrees' if abs(r) <= 1 else 'outside tolerance'})")
+    return lines
 
-    A fit with an ``extension`` is run first with the extension's parameters held at
-    their starting (no-op) values, then with them free; the extension is kept when the
-    held-out records agree more often (ties: smaller summed |residual|).
+
+def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, seed: int = 0, maxfev: int = 200,
+              only: list[str] | None = None, passes: int = 2, log: Callable[[str], None] | None = None
+              ) -> tuple[Settings, list[FitResult], list[ExtensionReport]]:
+    """Run the plan's fits in order, ``passes`` times (``only``: just the fits with these names).
+
+    The fits share parameters through the records they touch (a twist play changes the
+    strains the geometry was fitted to), so the sequence is repeated; later passes start
+    from the earlier results and get half the evaluations. In the first pass a fit with an
+    ``extension`` is run with the extension's parameters held at their starting (no-op)
+    values, then with them free; the extension is kept when the held-out records agree
+    more often (ties: smaller summed |residual|), and a rejected extension stays out of
+    the later passes.
     """
     results, extensions = [], []
-    for fit in plan.fits:
-        if only and fit.name not in only:
-            continue
+    rejected: set[tuple[tuple[str, ...], str]] = set()
+
+    def say(lines: list[str]) -> None:
         if log is not None:
-            log(f"fit '{fit.name}': {len(fit.parameters)} parameters on {len(fit.records)} records")
-        if fit.extension is None:
-            settings, result = run_fit(fit, records, settings, seed=seed, maxfev=maxfev, log=log)
-            results.append(result)
-            continue
-        effect, keys = fit.extension
-        base = Fit(f"{fit.name} (without {effect})", {k: v for k, v in fit.parameters.items() if k not in keys},
-                   fit.records)
-        s_without, r_without = run_fit(base, records, settings, seed=seed, maxfev=maxfev, log=log)
-        s_with, r_with = run_fit(fit, records, s_without, seed=seed, maxfev=maxfev, log=log)
-        h0 = held_out_residuals(records, plan, s_without, seed)
-        h1 = held_out_residuals(records, plan, s_with, seed)
-        a0 = sum(abs(v) <= 1 for v in h0.values())
-        a1 = sum(abs(v) <= 1 for v in h1.values())
-        c0 = sum(min(abs(v), 10.0) for v in h0.values())
-        c1 = sum(min(abs(v), 10.0) for v in h1.values())
-        kept = a1 > a0 or (a1 == a0 and c1 < c0)
-        extensions.append(ExtensionReport(fit.name, effect, sorted(h0), a0, a1, c0, c1, kept))
-        if log is not None:
-            log(f"  extension {effect}: held-out agreements {a0} -> {a1}, summed |residual| {c0:.1f} -> {c1:.1f}: "
-                f"{'kept' if kept else 'rejected'}")
-        settings = s_with if kept else s_without
-        results += [r_without, r_with]
+            log("\n".join(lines))
+
+    for n in range(passes):
+        budget = maxfev if n == 0 else max(20, maxfev // 2)
+        for fit in plan.fits:
+            if only and fit.name not in only:
+                continue
+            name = fit.name if n == 0 else f"{fit.name} (pass {n + 1})"
+            say([f"fit '{name}': {len(fit.parameters)} parameters on {len(fit.records)} records"])
+            if fit.extension is None or n > 0:
+                f = Fit(name, {k: v for k, v in fit.parameters.items() if k not in rejected}, fit.records)
+                settings, result = run_fit(f, records, settings, seed=seed, maxfev=budget, log=log)
+                results.append(result)
+                say(describe(result))
+                continue
+            effect, keys = fit.extension
+            base = Fit(f"{fit.name} (without {effect})", {k: v for k, v in fit.parameters.items() if k not in keys},
+                       fit.records)
+            s_without, r_without = run_fit(base, records, settings, seed=seed, maxfev=budget, log=log)
+            s_with, r_with = run_fit(Fit(name, fit.parameters, fit.records), records, s_without, seed=seed,
+                                     maxfev=budget, log=log)
+            say(describe(r_without) + describe(r_with))
+            h0 = held_out_residuals(records, plan, s_without, seed)
+            h1 = held_out_residuals(records, plan, s_with, seed)
+            a0 = sum(abs(v) <= 1 for v in h0.values())
+            a1 = sum(abs(v) <= 1 for v in h1.values())
+            c0 = sum(min(abs(v), 10.0) for v in h0.values())
+            c1 = sum(min(abs(v), 10.0) for v in h1.values())
+            kept = a1 > a0 or (a1 == a0 and c1 < c0)
+            extensions.append(ExtensionReport(fit.name, effect, sorted(h0), a0, a1, c0, c1, kept))
+            say([f"  extension {effect}: held-out agreements {a0} -> {a1}, summed |residual| {c0:.1f} -> {c1:.1f}: "
+                 f"{'kept' if kept else 'rejected'}"])
+            if not kept:
+                rejected.update(keys)
+            settings = s_with if kept else s_without
+            results += [r_without, r_with]
     return settings, results, extensions
 
 

@@ -184,7 +184,7 @@ class Lab:
 
     def heat(self, ply: int, load_g: float) -> SimRun:
         full, _ = FULL_TWIST[ply]
-        h = history(twist_heat_steps(full, max_V=MAX_VOLTAGE_V, hold_s=30.0 if self.quick else 90.0), dt_s=0.1,
+        h = history(twist_heat_steps(full, max_V=MAX_VOLTAGE_V, hold_s=30.0 if self.quick else 90.0), dt_s=0.5,
                     load_g=load_g)
         return self.simulate(f"heat-{ply}ply-{load_g:g}g", PRESET_FOR[f"ply{ply}"], h)
 

@@ -9,7 +9,8 @@ Contract: :func:`load_plan` reads the plan and checks it against the records::
       <preset>: {<parameter path>: <record id>, ...}
     fits:                             # run in order; a later fit starts from the earlier results
       - name: <what this fit is for>
-        parameters: {<preset>:<parameter path>: [low, high], ...}
+        parameters: {<preset>:<parameter path>: [low, high], ...}   # <preset1>,<preset2>:<path> ties
+                                      # one value to several presets (e.g. the rig's sensor noise)
         records: [<record id>, ...]   # the records the parameters are fitted to
         extension:                    # optional: a plant effect the fit adds, judged on held-out records
           effect: <effect name>
@@ -44,13 +45,14 @@ MANIPULATOR = "manipulator"
 
 @dataclass
 class Fit:
-    """One fit: parameters (``(preset, path) -> (low, high)``) and the records they are fitted to."""
+    """One fit: parameters (``(presets, path) -> (low, high)``, one value set in every preset
+    named) and the records they are fitted to."""
 
     name: str
-    parameters: dict[tuple[str, str], tuple[float, float]] = field(default_factory=dict)
+    parameters: dict[tuple[tuple[str, ...], str], tuple[float, float]] = field(default_factory=dict)
     records: list[str] = field(default_factory=list)
     #: effect name and the parameters that switch it on (fitted once without them: the gain is measured)
-    extension: tuple[str, list[tuple[str, str]]] | None = None
+    extension: tuple[str, list[tuple[tuple[str, ...], str]]] | None = None
 
 
 @dataclass
@@ -76,8 +78,9 @@ class CalibrationPlan:
         """preset -> the parameter paths some fit sets."""
         out: dict[str, list[str]] = {}
         for f in self.fits:
-            for preset, path in f.parameters:
-                out.setdefault(preset, []).append(path)
+            for presets, path in f.parameters:
+                for preset in presets:
+                    out.setdefault(preset, []).append(path)
         return out
 
 
@@ -139,16 +142,18 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
         fit = Fit(reader.string(fm["name"], f"{where}.name") or where if "name" in fm else where)
         for key, vnode in (reader.mapping(fm["parameters"], f"{where}.parameters", _AnyKey()) or {}).items() \
                 if "parameters" in fm else []:
-            preset, sep, ppath = key.partition(":")
+            names, sep, ppath = key.partition(":")
+            targets = tuple(n.strip() for n in names.split(","))
             bounds = reader.plain_data(vnode, f"{where}.parameters.{key}")
-            if not sep or preset not in presets or not ppath:
-                sink.add(vnode, f"{where}.parameters.{key}", "expected <preset>:<parameter path>", ", ".join(presets))
+            if not sep or not ppath or any(t not in presets for t in targets):
+                sink.add(vnode, f"{where}.parameters.{key}", "expected <preset>[,<preset>...]:<parameter path>",
+                         ", ".join(presets))
             elif (not isinstance(bounds, list) or len(bounds) != 2
                   or not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds)
                   or not bounds[0] < bounds[1]):
                 sink.add(vnode, f"{where}.parameters.{key}", f"expected [low, high] bounds, got {bounds!r}")
             else:
-                fit.parameters[(preset, ppath)] = (float(bounds[0]), float(bounds[1]))
+                fit.parameters[(targets, ppath)] = (float(bounds[0]), float(bounds[1]))
         for j, rnode in enumerate(reader.sequence(fm["records"], f"{where}.records", "record ids") or []
                                   if "records" in fm else []):
             rid = _record_id(reader, sink, rnode, f"{where}.records[{j}]", ids)
@@ -162,11 +167,12 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
             for j, knode in enumerate(reader.sequence(em["parameters"], f"{where}.extension.parameters",
                                                       "parameters") or [] if "parameters" in em else []):
                 key = reader.string(knode, f"{where}.extension.parameters[{j}]")
-                preset, _, ppath = (key or "").partition(":")
-                if key is not None and (preset, ppath) not in fit.parameters:
+                names, _, ppath = (key or "").partition(":")
+                pkey = (tuple(n.strip() for n in names.split(",")), ppath)
+                if key is not None and pkey not in fit.parameters:
                     sink.add(knode, f"{where}.extension.parameters[{j}]", f"{key!r} is not among the fit's parameters")
                 elif key is not None:
-                    keys.append((preset, ppath))
+                    keys.append(pkey)
             if effect is not None and keys:
                 fit.extension = (effect, keys)
         fits.append(fit)
