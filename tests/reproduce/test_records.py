@@ -25,8 +25,9 @@ def test_shipped_records_cover_the_thesis(records):
     assert len(records) >= 200 and len(ids) == len(records)
     assert {r.chapter for r in records} == {2, 3, 4}
     # Tables 3.1-3.3 in full, every error table of chapter 3, the strains of 2.4, the lifetime of 2.5.2
-    assert sum(r.id.startswith("t3.1.") for r in records) == 48
-    assert sum(r.id.startswith("t3.2.") for r in records) == 32
+    assert sum(r.id.startswith("t3.1.") and r.id[-3:-1] == ".p" for r in records) == 48
+    assert sum(r.id.startswith("t3.2.") and r.id[-3:-1] == ".p" for r in records) == 32
+    assert sum(".curve." in r.id and bool(r.derived) for r in records) == 16  # the tables again, as curves
     assert sum(r.id.startswith("t3.3.") for r in records) == 15
     assert sum(r.id.startswith("s3.2.2.") and (".sr." in r.id or ".ss." in r.id) for r in records) == 28
     for needed in ("ch2.strain.3ply_200g_passive", "ch2.strain.3ply_200g_active", "ch2.strain.3ply_avg_active",

@@ -1,4 +1,4 @@
-"""`tsa-bench reproduce --quick`: the full side-by-side table, its verdicts and roles, JSON and figures."""
+"""`tsa-bench reproduce`: the side-by-side table, its verdicts and roles, JSON and figures (full and --quick)."""
 
 from __future__ import annotations
 
@@ -13,17 +13,27 @@ from tsa_bench.reproduce.records import load_records
 from tsa_bench.reproduce.table import VERDICTS
 
 
+def _run(*args: str) -> dict:
+    res = CliRunner().invoke(main, ["reproduce", "--json", *args])
+    assert res.exit_code == 0, res.output
+    return json.loads(res.stdout[res.stdout.index("{"):])
+
+
+@pytest.fixture(scope="module")
+def full():
+    """The whole table as `tsa-bench reproduce` prints it (about a minute of simulated experiments)."""
+    return _run(), None
+
+
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
     figs = tmp_path_factory.mktemp("figs")
-    res = CliRunner().invoke(main, ["reproduce", "--quick", "--json", "--figures", str(figs)])
-    assert res.exit_code == 0, res.output
-    doc = json.loads(res.stdout[res.stdout.index("{"):])
-    return doc, figs
+    return _run("--quick", "--figures", str(figs)), figs
 
 
-def test_every_record_gets_a_row_with_a_verdict_and_a_role(quick):
-    doc, _ = quick
+@pytest.mark.parametrize("which", ["full", "quick"])
+def test_every_record_gets_a_row_with_a_verdict_and_a_role(which, request):
+    doc, _ = request.getfixturevalue(which)
     rows = {r["id"]: r for r in doc["rows"]}
     records = load_records()
     assert set(rows) == {r.id for r in records}
@@ -38,8 +48,8 @@ def test_every_record_gets_a_row_with_a_verdict_and_a_role(quick):
             assert row["simulated"] is not None and row["tolerance"], row
 
 
-def test_built_from_records_are_never_counted_as_agreement(quick):
-    doc, _ = quick
+def test_built_from_records_are_never_counted_as_agreement(full):
+    doc, _ = full
     built = [r for r in doc["rows"] if r["role"] == "built-from"]
     assert len(built) >= 10
     for r in built:
@@ -47,8 +57,8 @@ def test_built_from_records_are_never_counted_as_agreement(quick):
     assert "built-from" not in doc["summary"]["by_role"]  # not in the agreement counts at all
 
 
-def test_every_compared_row_states_its_gap_and_every_disagreement_its_reason(quick):
-    doc, _ = quick
+def test_every_compared_row_states_its_gap_and_every_disagreement_its_reason(full):
+    doc, _ = full
     for r in doc["rows"]:
         if r["verdict"] in ("agrees", "disagrees"):
             assert r["gap"] is not None, r
@@ -59,8 +69,8 @@ def test_every_compared_row_states_its_gap_and_every_disagreement_its_reason(qui
     assert held["agrees"] > held["disagrees"]  # after calibration most held-out rows agree
 
 
-def test_known_rows_after_calibration(quick):
-    rows = {r["id"]: r for r in quick[0]["rows"]}
+def test_known_rows_after_calibration(full):
+    rows = {r["id"]: r for r in full[0]["rows"]}
     assert rows["t3.3.b1"]["verdict"] == "consistency-only"  # the simulator's decay is Table 3.3's
     assert rows["ch4.control.rise_time"]["role"] == "fitted" and rows["ch4.control.rise_time"]["verdict"] == "agrees"
     assert rows["ch2.scheme2.range"]["verdict"] == "agrees"

@@ -9,10 +9,11 @@ Contract:
   :func:`tsa_bench.reproduce.table.residual` (1 = at the edge of its tolerance).
 * :func:`run_fit` fits one :class:`~tsa_bench.reproduce.plan.Fit`: its parameters,
   mapped to [0, 1] within their bounds (logarithmically when the bounds span more than
-  a factor 10 and are positive), are adjusted by scipy's bounded Nelder-Mead to
-  minimise the soft-L1 sum of the residuals of the fit's records, each evaluation
-  simulating the records' experiments on fresh copies of the presets (fixed seeds:
-  the same noise every evaluation).
+  a factor 10 and are positive), are adjusted to minimise the soft-L1 sum of the
+  residuals of the fit's records: scipy's bounded trust-region least squares (finite-
+  difference Jacobian), then a short bounded Nelder-Mead polish with what is left of
+  the budget. Each evaluation simulates the records' experiments on fresh copies of the
+  presets (fixed seeds: the same noise every evaluation).
 * :func:`calibrate` runs the plan's fits in order, each starting from the results of
   the earlier ones, and returns the new preset mappings and manipulator settings.
 * :func:`write_calibration` writes fitted values into the bench files (and
@@ -32,7 +33,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from scipy.optimize import minimize
+from scipy.optimize import least_squares, minimize
 
 from tsa_bench.reproduce.experiments import BENCH_DIR, PRESETS, Lab, preset_plant
 from tsa_bench.reproduce.manipulator import CONFIG as MANIPULATOR_FILE
@@ -177,13 +178,30 @@ def run_fit(fit: Fit, records: list[Record], settings: Settings, seed: int = 0, 
                 log(f"  {fit.name}: {len(cache)} evaluations, cost {min(v[0] for v in cache.values()):.3f}")
         return cache[key][0]
 
+    def residuals(u: np.ndarray) -> np.ndarray:
+        cost(u)
+        res = cache[tuple(np.round(u, 6))][1]
+        return np.array([max(-1e3, min(1e3, res[r.id])) for r in recs])
+
     u0 = np.array([space.coord(i, start[k]) for i, k in enumerate(space.keys)])
     c0 = cost(u0)
     n = len(u0)
-    simplex = [u0] + [np.clip(u0 + np.eye(n)[i] * (0.15 if u0[i] < 0.85 else -0.15), 0, 1) for i in range(n)]
-    res = minimize(cost, u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * n,
-                   options={"maxfev": maxfev, "initial_simplex": np.array(simplex), "xatol": 1e-3, "fatol": 1e-3})
-    best = res.x if res.fun <= c0 else u0
+    try:  # trust-region least squares on the residual vector, soft-L1 loss, finite-difference Jacobian
+        ls = least_squares(residuals, u0, bounds=(np.zeros(n), np.ones(n)), loss="soft_l1", diff_step=0.004,
+                           x_scale=np.full(n, 0.3), max_nfev=max(3, maxfev // (n + 1)), xtol=1e-4, ftol=1e-4)
+        best = ls.x
+    except ValueError:
+        best = u0
+    if cost(best) > c0:
+        best = u0
+    # a short simplex polish from there (helps where the residuals are not smooth)
+    simplex = [best] + [np.clip(best + np.eye(n)[i] * (0.05 if best[i] < 0.95 else -0.05), 0, 1) for i in range(n)]
+    left = max(0, maxfev - len(cache))
+    if left > n + 2:
+        nm = minimize(cost, best, method="Nelder-Mead", bounds=[(0.0, 1.0)] * n,
+                      options={"maxfev": left, "initial_simplex": np.array(simplex), "xatol": 1e-3, "fatol": 1e-3})
+        if nm.fun < cost(best):
+            best = nm.x
     cost(best)
     c_best, resid = cache[tuple(np.round(best, 6))]
     out = apply(best)
@@ -231,8 +249,8 @@ def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, 
     The fits share parameters through the records they touch (a twist play changes the
     strains the geometry was fitted to), so the sequence is repeated; later passes start
     from the earlier results and get half the evaluations. In the first pass a fit with an
-    ``extension`` is run with the extension's parameters held at their starting (no-op)
-    values, then with them free; the extension is kept when the held-out records agree
+    ``extension`` is run with the extension's parameters held at 0 (no effect), then
+    with them free; the extension is kept when the held-out records agree
     more often (ties: smaller summed |residual|), and a rejected extension stays out of
     the later passes.
     """
@@ -244,19 +262,25 @@ def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, 
             log("\n".join(lines))
 
     for n in range(passes):
-        budget = maxfev if n == 0 else max(20, maxfev // 2)
         for fit in plan.fits:
             if only and fit.name not in only:
                 continue
+            budget = fit.maxfev or maxfev
+            budget = budget if n == 0 else max(10, budget // 2)
             name = fit.name if n == 0 else f"{fit.name} (pass {n + 1})"
             say([f"fit '{name}': {len(fit.parameters)} parameters on {len(fit.records)} records"])
             if fit.extension is None or n > 0:
                 f = Fit(name, {k: v for k, v in fit.parameters.items() if k not in rejected}, fit.records)
+                if not f.parameters:
+                    continue
                 settings, result = run_fit(f, records, settings, seed=seed, maxfev=budget, log=log)
                 results.append(result)
                 say(describe(result))
                 continue
             effect, keys = fit.extension
+            settings = settings.copy()
+            for k in keys:  # the extension's parameters are 0 (no effect) for the fit without it
+                settings.set(*k, 0.0)
             base = Fit(f"{fit.name} (without {effect})", {k: v for k, v in fit.parameters.items() if k not in keys},
                        fit.records)
             s_without, r_without = run_fit(base, records, settings, seed=seed, maxfev=budget, log=log)

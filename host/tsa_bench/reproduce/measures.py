@@ -14,8 +14,8 @@ definitions:
   load on the quasi-static samples of the twist sweep or the heating run (motor
   stopped, last third of each hold, as ``tsa-bench fit``); errors E_aver and sigma
   (eqs. 3.5-3.6) over the pooled absolute errors of the cases named;
-* self-sensing (3.2.1): one steady-state (length, resistance) value per 180 s hold
-  (2.5.1: "the steady-state length and resistance"), models fitted on those;
+* self-sensing (3.2.1): the quasi-static samples of the 180 s holds at 20-55 turns
+  (the last third of each), resistance in, length out;
 * strains: eq. 2.2, ``(x_l - x) / x`` with ``x_l`` the loaded untwisted length;
   thermal: ``(x_twisted - x_heated) / x_heated``;
 * transient (3.2.2): ``tsa-bench fit`` identifies strain-resistance and self-sensing
@@ -79,6 +79,10 @@ EXPERIMENTS = ("sweep", "heat", "scheme")
 MEASURES: dict[str, MeasureSpec] = {
     "poly_coefficient": MeasureSpec({"experiment": EXPERIMENTS, "index": (0, 1, 2, 3), "stat": ("max_abs",)},
                                     _poly_unit, "coefficient p_i of the cubic fitted to the case (eq. 3.4)"),
+    "poly_curve_gap": MeasureSpec({"experiment": EXPERIMENTS, "coefficients": list, "rounding": list, "unit": str},
+                                  _fixed("mm"),
+                                  "how far the simulated cubic strays outside the band the thesis's printed "
+                                  "coefficients allow (each +- its rounding), over the simulated input range"),
     "model_error": MeasureSpec({"experiment": EXPERIMENTS, "model": ("preisach", "polynomial"),
                                 "stat": ("e_aver", "sigma", "worst_case")}, _fixed("mm"),
                                "pooled E_aver / sigma (eqs. 3.5-3.6) of the cases, or the worst case's E_aver"),
@@ -139,9 +143,25 @@ def measure_unit(measure: dict[str, Any], conditions: dict[str, Any]) -> str:
             raise MeasureError(f"{measure['name']}: {key} must be one of {', '.join(map(str, allowed))}, got {val!r}")
         if allowed is float and (isinstance(val, bool) or not isinstance(val, (int, float))):
             raise MeasureError(f"{measure['name']}: {key} must be a number, got {val!r}")
-        if allowed in (str, dict) and not isinstance(val, allowed):
+        if allowed in (str, dict, list) and not isinstance(val, allowed):
             raise MeasureError(f"{measure['name']}: {key} must be a {allowed.__name__}, got {val!r}")
-    required = {"poly_coefficient": ("experiment", "index"), "model_error": ("experiment", "model", "stat"),
+    if measure["name"] == "poly_curve_gap":
+        coeffs, rounding, unit = measure.get("coefficients"), measure.get("rounding"), measure.get("unit")
+        for what, vals in (("coefficients", coeffs), ("rounding", rounding)):
+            if not (isinstance(vals, list) and 2 <= len(vals) <= 6
+                    and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in vals)):
+                raise MeasureError(f"poly_curve_gap: {what} must be a list of 2-6 numbers, lowest order first")
+        if len(rounding) != len(coeffs) or min(rounding) < 0:
+            raise MeasureError("poly_curve_gap: one rounding (>= 0) per coefficient")
+        from tsa_bench.units import UnitError, parse_unit
+        try:
+            u = parse_unit(str(unit))
+        except UnitError as exc:
+            raise MeasureError(f"poly_curve_gap: {exc}") from None
+        if dict(u.signature).get("length") != 1:
+            raise MeasureError(f"poly_curve_gap: unit '{unit}' must be a length per input unit (e.g. cm/turn)")
+    required = {"poly_coefficient": ("experiment", "index"),
+                "poly_curve_gap": ("experiment", "coefficients", "rounding", "unit"), "model_error": ("experiment", "model", "stat"),
                 "error_ratio": ("experiment",), "length_change": ("experiment", "stat"), "strain": ("kind",),
                 "scheme_length": ("turns",), "scheme_contraction": ("from_turns", "to_turns"),
                 "load_effect": ("column",), "plant_setting": ("path",), "bench_setting": ("path",),

@@ -12,6 +12,7 @@ Contract: :func:`load_plan` reads the plan and checks it against the records::
         parameters: {<preset>:<parameter path>: [low, high], ...}   # <preset1>,<preset2>:<path> ties
                                       # one value to several presets (e.g. the rig's sensor noise)
         records: [<record id>, ...]   # the records the parameters are fitted to
+        maxfev: <int>                 # optional: at most this many simulations (default: the script's)
         extension:                    # optional: a plant effect the fit adds, judged on held-out records
           effect: <effect name>
           parameters: [<preset>:<parameter path>, ...]   # among the parameters above
@@ -53,6 +54,8 @@ class Fit:
     records: list[str] = field(default_factory=list)
     #: effect name and the parameters that switch it on (fitted once without them: the gain is measured)
     extension: tuple[str, list[tuple[tuple[str, ...], str]]] | None = None
+    #: at most this many simulations (None: the caller's budget)
+    maxfev: int | None = None
 
 
 @dataclass
@@ -137,7 +140,7 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
     fits: list[Fit] = []
     for i, fnode in enumerate(reader.sequence(top["fits"], "fits", "fits") or [] if "fits" in top else []):
         where = f"fits[{i}]"
-        fm = reader.mapping(fnode, where, ("name", "parameters", "records", "extension"),
+        fm = reader.mapping(fnode, where, ("name", "parameters", "records", "extension", "maxfev"),
                             ("name", "parameters", "records")) or {}
         fit = Fit(reader.string(fm["name"], f"{where}.name") or where if "name" in fm else where)
         for key, vnode in (reader.mapping(fm["parameters"], f"{where}.parameters", _AnyKey()) or {}).items() \
@@ -159,6 +162,8 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
             rid = _record_id(reader, sink, rnode, f"{where}.records[{j}]", ids)
             if rid is not None:
                 fit.records.append(rid)
+        if "maxfev" in fm:
+            fit.maxfev = reader.integer(fm["maxfev"], f"{where}.maxfev", ge=5)
         if "extension" in fm:
             em = reader.mapping(fm["extension"], f"{where}.extension", ("effect", "parameters"),
                                 ("effect", "parameters")) or {}

@@ -21,7 +21,7 @@ from tsa_bench.models.preisach import PreisachModel
 from tsa_bench.reproduce.experiments import (DURATIONS_S, LIFETIME_CYCLES, LOADS, SCHEME_LOADS, TRAINING_S, Lab,
                                              SimRun, lifetime_steps, plateaus, preset_for)
 from tsa_bench.reproduce.runs import history
-from tsa_bench.reproduce.measures import MeasureError
+from tsa_bench.reproduce.measures import UNIT_OF_INPUT, MeasureError
 
 LEVELS = 20
 ORDER = 3
@@ -62,24 +62,19 @@ class CaseFit:
         self.errors = {"preisach": np.abs(self.preisach.predict(u_hist)[ok] - y_hist[ok]),
                        "polynomial": np.abs(self.poly.predict(u_hist[ok]) - y_hist[ok])}
         self.y = y_hist[ok]
+        self.u_min, self.u_max = float(np.min(u_hist[ok])), float(np.max(u_hist[ok]))
 
 
 def case_fit(lab: Lab, experiment: str, key: int, load: float) -> CaseFit:
     def make() -> CaseFit:
         sim = _run(lab, experiment, key, load)
-        if experiment == "scheme":  # one steady-state value per hold (2.5.1)
-            pl_r = plateaus(sim.hist, sim.resistance)
-            pl_l = dict(plateaus(sim.hist, sim.length))
-            moved = [(s, r) for s, r in pl_r if sim.hist["turns"][sim.hist["segment"] == s][0] >= 20.0 - 1e-9]
-            u = np.array([r for _, r in moved])
-            y = np.array([pl_l[s] for s, _ in moved])
-            return CaseFit(u, y, np.ones(len(u), bool))
-        col = "turns" if experiment == "sweep" else "heater_voltage"
+        col = {"sweep": "turns", "heat": "heater_voltage", "scheme": "resistance"}[experiment]
         run = sim.run
         u = np.asarray(run.samples[col], float)
-        mask = quasi_static_mask(run, col)
-        if experiment == "heat":
-            mask &= np.asarray(run.samples["motor_moving"]) == 0
+        mask = quasi_static_mask(run, col) & (np.asarray(run.samples["motor_moving"]) == 0)
+        if experiment == "scheme":  # the sensing range, 20-55 turns (2.5.1), not the rest before it
+            mask &= np.asarray(run.samples["turns"], float) >= 20.0 - 1e-9
+            u = np.where(np.isfinite(u), u, np.nanmedian(u))
         return CaseFit(u, np.asarray(run.samples["length"], float), mask)
     return lab.cached(("casefit", experiment, key, load), make)
 
@@ -100,6 +95,20 @@ def poly_coefficient(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
     if len(vals) != 1:
         raise MeasureError("poly_coefficient of several cases needs stat: max_abs")
     return float(vals[0])
+
+
+def poly_curve_gap(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
+    """Largest excess (mm) of |p_sim(q) - p_thesis(q)| over the band the printed coefficients
+    allow, ``sum_i rounding_i |q|^i``, over the simulated case's quasi-static input range (0: inside)."""
+    from tsa_bench.units import parse_unit
+
+    (case,) = _cases(c, a["experiment"])
+    f = case_fit(lab, a["experiment"], *case)
+    to_mm = parse_unit(a["unit"]).factor / parse_unit(f"mm/{UNIT_OF_INPUT[a['experiment']]}").factor
+    q = np.linspace(f.u_min, f.u_max, 101)
+    thesis = np.polynomial.polynomial.polyval(q, np.asarray(a["coefficients"], float)) * to_mm
+    band = np.polynomial.polynomial.polyval(np.abs(q), np.asarray(a["rounding"], float)) * to_mm
+    return float(max(0.0, np.max(np.abs(f.poly.predict(q) - thesis) - band)))
 
 
 def model_error(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:

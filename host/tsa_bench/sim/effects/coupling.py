@@ -2,14 +2,17 @@
 
 Units: twist in turns, temperature in degC (K for differences), strain dimensionless.
 
-Contract: see :mod:`tsa_bench.sim.effects.base`. Both are off unless a bench file
-switches them on (``default_enabled`` False) and no-ops at their default parameters.
+Contract: see :mod:`tsa_bench.sim.effects.base`. All are off unless a bench file switches
+them on (``default_enabled`` False) and no-ops at their default parameters.
 
 * ``twist_stiffening`` (geometry stage, before ``string_compliance``): inserting twist
   stiffens the coiled SCP strings, ``K_eff = K (1 + kappa |turns|)``, so the load
   stretches them less the more they are twisted. It gives the linear term of the
   twisting polynomials (Table 3.1, p1) and its growth with the load: the recovered
   stretch is ``L0 F / K * kappa |T|`` to first order, proportional to the load.
+* ``thermal_softening`` (geometry stage, before ``string_compliance``): warm strings are
+  softer, ``K_eff = K / (1 + sigma (T - T_amb))``: under a load the heated TSA first
+  lengthens, as the thesis's 150 g heating polynomials do (p1 > 0), before it contracts.
 * ``thermal_actuation`` (geometry stage): hysteretic, saturating thermal contraction,
   ``L *= 1 - s_max tanh(k (T_p - T_amb) / s_max)`` with ``T_p`` the temperature passed
   through a play operator of half width ``hysteresis_K`` (the contraction lags the
@@ -48,6 +51,31 @@ class TwistStiffening(Effect):
         k = self.params.per_turn
         if k:
             state.stiffness_factor *= 1.0 + k * abs(state.turns)
+
+
+@register_effect
+class ThermalSoftening(Effect):
+    """Warm strings are softer: ``K_eff = K / (1 + sigma (T - T_amb))``, so the load stretches them more.
+
+    Source: calibration to thesis Table 3.1 (heating): for 3-ply and 4-ply at 150 g the
+    length first rises with the voltage (p1 = +0.32 and +0.673 cm/V) before the thermal
+    contraction takes over; nylon's modulus falls as it warms towards its glass transition.
+    """
+
+    name = "thermal_softening"
+    stage = "geometry"
+    default_enabled = False
+    source = "calibration to thesis Table 3.1 (heating p1 > 0)"
+
+    @dataclass(frozen=True)
+    class Params:
+        per_K: float = param(0.0, "1/K", "sigma: relative compliance gain per kelvin above ambient", minimum=0.0)
+
+    def apply(self, state: PlantState) -> None:
+        s = self.params.per_K
+        dt = state.temperature_C - state.ambient_C
+        if s and dt > 0.0:
+            state.stiffness_factor /= 1.0 + s * dt
 
 
 @register_effect
