@@ -88,6 +88,9 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
                f"{v['not computed']} not computed")
     for role, c in sorted(summ["by_role"].items()):
         click.echo(f"  {role}: {c['agrees']} agree, {c['disagrees']} disagree")
+    for kind, c in sorted(summ["held_out_by_kind"].items()):
+        what = "measured quantities" if kind == "quantity" else "model coefficients and parameters (Tables 3.1-3.3)"
+        click.echo(f"  held-out {what}: {c['agrees']} agree, {c['disagrees']} disagree")
     if summ["unexplained_disagreements"]:
         click.echo("disagreements without a named reason: " + ", ".join(summ["unexplained_disagreements"]))
     click.echo(f"({summ['seconds']} s{', quick experiments' if quick else ''})")

@@ -34,6 +34,8 @@ from tsa_bench.reproduce.records import Record
 from tsa_bench.units import UnitError, convert
 
 VERDICTS = ("agrees", "disagrees", "consistency-only", "not simulated", "not computed")
+#: measures whose value is a fitted model's coefficient or parameter (Tables 3.1-3.3)
+COEFFICIENT_MEASURES = ("poly_coefficient", "model_parameter")
 
 
 @dataclass
@@ -54,6 +56,7 @@ class Row:
     reason: str
     source: str
     reading: str
+    kind: str = "quantity"
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -143,8 +146,9 @@ def evaluate(records: list[Record], lab: Any, plan: CalibrationPlan,
     rows = []
     for rec in records:
         role = plan.role(rec.id)
+        kind = "coefficient" if rec.measure and rec.measure["name"] in COEFFICIENT_MEASURES else "quantity"
         base = dict(id=rec.id, chapter=rec.chapter, quantity=rec.quantity, thesis=rec.shown_value, unit=rec.unit,
-                    source=rec.source_text, reading=rec.reading, role=role)
+                    source=rec.source_text, reading=rec.reading, role=role, kind=kind)
         if rec.measure is None:
             rows.append(Row(**base, simulated=None, gap=None, gap_percent=None, tolerance="",
                             verdict="not simulated", reason=rec.not_simulated or ""))
@@ -179,13 +183,19 @@ def evaluate(records: list[Record], lab: Any, plan: CalibrationPlan,
 
 
 def summary(rows: list[Row]) -> dict[str, Any]:
-    """Counts by verdict and, for compared rows, by role."""
-    out: dict[str, Any] = {"records": len(rows), "by_verdict": {v: 0 for v in VERDICTS}, "by_role": {}}
+    """Counts by verdict and, for compared rows, by role, and for held-out rows by kind:
+    ``quantity`` (a measured behaviour) or ``coefficient`` (a fitted model's coefficient or
+    parameter, Tables 3.1-3.3: ill-conditioned, so reported apart)."""
+    out: dict[str, Any] = {"records": len(rows), "by_verdict": {v: 0 for v in VERDICTS}, "by_role": {},
+                           "held_out_by_kind": {}}
     for r in rows:
         out["by_verdict"][r.verdict] += 1
         if r.verdict in ("agrees", "disagrees"):
             role = out["by_role"].setdefault(r.role, {"agrees": 0, "disagrees": 0})
             role[r.verdict] += 1
+            if r.role == "held-out":
+                kind = out["held_out_by_kind"].setdefault(r.kind, {"agrees": 0, "disagrees": 0})
+                kind[r.verdict] += 1
     out["unexplained_disagreements"] = [r.id for r in rows if r.verdict == "disagrees" and
                                         r.reason == "no reason named"]
     return out
