@@ -65,8 +65,12 @@ def test_every_compared_row_states_its_gap_and_every_disagreement_its_reason(ful
         if r["verdict"] == "disagrees":
             assert r["reason"] and r["reason"] != "no reason named", r["id"]
     assert doc["summary"]["unexplained_disagreements"] == []
-    held = doc["summary"]["by_role"]["held-out"]
-    assert held["agrees"] > held["disagrees"]  # after calibration most held-out rows agree
+    # after calibration most held-out measured quantities agree; the tables' coefficients, which a
+    # cubic or an over-parameterised model trades off against each other, mostly do not
+    quantities = doc["summary"]["held_out_by_kind"]["quantity"]
+    assert quantities["agrees"] > 1.4 * quantities["disagrees"]
+    kinds = {r["kind"] for r in doc["rows"] if r["id"].startswith(("t3.1.3ply", "t3.2.s1", "t3.3."))}
+    assert kinds == {"coefficient"}
 
 
 def test_known_rows_after_calibration(full):
