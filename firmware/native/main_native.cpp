@@ -9,7 +9,7 @@
 // Run:  tsa_bench_native [--speed X | --virtual]
 //   --speed X  device time = wall time x X (default 1).
 //   --virtual  device time runs as fast as possible while the host is quiet, but never
-//              more than half a watchdog period past the last byte from the host, unless
+//              more than an eighth of a watchdog period past the last byte from the host, unless
 //              the host has been silent for two watchdog periods of wall time (gone, not
 //              slow: then the watchdog fires), as `tsa-bench sim-serve` paces itself.
 // Sends BOOT at once; exits when stdin closes. The IDENTITY has the SIMULATED flag and
@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
         uint64_t target;
         if (virtual_time) {
             bool gone = wall_us() - last_host_wall > 2 * wd_us;
-            uint64_t cap = last_host_dev_us + wd_us / 2;
+            uint64_t cap = last_host_dev_us + wd_us / 8;
             target = g_board.rx_pending() ? g_board.now : g_board.now + 1000;
             if (!gone && target > cap) target = cap > g_board.now ? cap : g_board.now;
             if (target == g_board.now && !gone) usleep(200);

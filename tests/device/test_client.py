@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 import serial
 
@@ -113,12 +115,19 @@ def test_command_retransmits_the_same_frame_until_acknowledged():
     assert len({f.seq for f in dwell_frames}) == 1 and len(dwell_frames) == 3
 
 
-def test_no_ack_after_retries_raises():
-    port = ScriptedPort({msg.Hello: lambda f: [identity()]})
-    client = BenchClient(port, ack_timeout_s=0.01, retries=2)
+def test_no_ack_is_retried_for_the_whole_watchdog_period_then_raises():
+    """The retry budget follows the device's watchdog (IDENTITY.watchdog_ms): a stall
+    shorter than it never fails a command; a silence longer than it does, saying so."""
+    port = ScriptedPort({msg.Hello: lambda f: [identity(watchdog_ms=100)]})
+    client = BenchClient(port, ack_timeout_s=0.01)
     client.connect(boot_timeout_s=0.2)
-    with pytest.raises(NoAcknowledgement, match="3 transmissions"):
+    assert client.retry_budget_s == pytest.approx(0.12)
+    t0 = time.monotonic()
+    with pytest.raises(NoAcknowledgement, match="watchdog") as info:
         client.command(msg.Heartbeat())
+    assert time.monotonic() - t0 >= client.retry_budget_s  # never gives up before the budget
+    sent = [f for f in port.received if isinstance(f.message, msg.Heartbeat)]
+    assert len(sent) >= 2 and len({f.seq for f in sent}) == 1 and f"{len(sent)} transmissions" in str(info.value)
 
 
 def test_nak_raises_with_the_status_name():

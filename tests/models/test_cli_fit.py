@@ -92,7 +92,7 @@ def test_manipulator_command(repo_root) -> None:
     assert 57 < rng < 63
     assert "steady-state error" in res.output
     res = CliRunner().invoke(main, ["manipulator", "nope.yaml"])
-    assert res.exit_code == 2 and "nope.yaml: no such file" in res.output
+    assert res.exit_code == 2 and "nope.yaml: manipulator file not found" in res.output
 
 
 @pytest.fixture(scope="module")

@@ -21,13 +21,14 @@ def open_sim(seed: int = 1, speed: float | None = None):
     return serial.serial_for_url(url, timeout=0.05)
 
 
-def run_plan(plan, out: Path, *, port=None, seed: int = 1):
+def run_plan(plan, out: Path, *, port=None, seed: int = 1, writer: RunWriter | None = None):
     """Run ``plan`` on the simulated bench (or ``port``); return (RunStop, client, path)."""
     port = port if port is not None else open_sim(seed)
     client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
     client.connect(BENCH.boot_timeout_s)
-    path = out / "run.h5"
-    runner = Runner(client, plan, BENCH, [RunWriter(path)], AutoOperator(), backend="sim", port_name="sim://")
+    writer = writer if writer is not None else RunWriter(out / "run.h5")
+    path = writer.path
+    runner = Runner(client, plan, BENCH, [writer], AutoOperator(), backend="sim", port_name="sim://")
     stop = runner.run()
     port.close()
     return stop, client, path

@@ -89,15 +89,15 @@ def test_read_advances_at_most_one_quantum_per_call():
     port = serial.serial_for_url("sim://", timeout=0.1)
     port.reset_input_buffer()
     assert port.read(100) == b""                      # idle, sampling off: nothing to say
-    assert port.device.now_s == pytest.approx(0.5)    # min(watchdog 2 s / 4, 0.5)
+    assert port.device.now_s == pytest.approx(0.25)   # min(watchdog 2 s / 8, 0.5)
     assert port.in_waiting == 0
-    assert port.device.now_s == pytest.approx(1.0)
+    assert port.device.now_s == pytest.approx(0.5)
 
 
 def test_heartbeating_every_quantum_survives_a_silent_dwell():
     """No sampling: the host sees nothing but its own replies. It heartbeats every other
     read: one read returns the heartbeat's replies, the next finds nothing buffered and
-    runs the device one quantum (0.5 s)."""
+    runs the device one quantum (0.25 s)."""
     port = serial.serial_for_url("sim://", timeout=0.1)
     host = PortHost(port)
     host.send(msg.Dwell(0, 30_000_000))

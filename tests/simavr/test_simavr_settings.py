@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import socket
 import struct
 import threading
 
 import pytest
+import yaml
 
 from tsa_bench.bench import BenchConfigError, load_bench, parse_bench
 from tsa_bench.sim.plant import plant_from_config
@@ -37,10 +39,27 @@ def test_shipped_settings_resolve_the_firmware_dir(repo_root):
 def test_bad_settings_name_file_and_key(repo_root, tmp_path, section, message):
     path = tmp_path / "bench.yaml"
     path.write_text(_bench_text(repo_root, section))
-    bench = parse_bench(path.read_text(), str(path))
-    with pytest.raises(BenchConfigError) as err:
-        simavr_settings(bench)
+    with pytest.raises(BenchConfigError) as err:  # the bench file is refused as a whole, before any use
+        parse_bench(path.read_text(), str(path))
     assert str(path) in str(err.value) and message in str(err.value)
+    good = parse_bench(_bench_text(repo_root, ""), str(path))
+    section_only = dataclasses.replace(good, simavr=yaml.safe_load(section)["simavr"])
+    with pytest.raises(BenchConfigError) as err:  # and the section on its own
+        simavr_settings(section_only)
+    assert str(path) in str(err.value) and message in str(err.value)
+
+
+def test_firmware_dir_outside_the_project_needs_trust(repo_root, tmp_path):
+    """The simavr bench runs `make` in firmware_dir: only this project's folder unless trusted."""
+    path = tmp_path / "bench.yaml"
+    path.write_text(_bench_text(repo_root, f"simavr: {{firmware_dir: {tmp_path}}}\n"))
+    with pytest.raises(BenchConfigError, match="--trust-firmware-dir") as err:
+        load_bench(path)
+    assert str(path) in str(err.value) and str(tmp_path) in str(err.value)
+    assert simavr_settings(load_bench(path, trust_firmware_dir=True), trust_firmware_dir=True).firmware_dir == tmp_path
+    inside = tmp_path / "inside.yaml"  # a relative path to the project's own folder is fine
+    inside.write_text(_bench_text(repo_root, f"simavr: {{firmware_dir: {repo_root / 'firmware'}}}\n"))
+    assert simavr_settings(load_bench(inside)).firmware_dir == repo_root / "firmware"
 
 
 def test_plant_server_answers_like_the_simulated_sensors(repo_root, tmp_path):

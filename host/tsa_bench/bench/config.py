@@ -4,7 +4,15 @@ A bench file (``configs/bench/*.yaml``) describes one rig. Contract: every physi
 quantity carries its unit in its key; calibrations are linear maps from the device's
 raw counts to physical units, applied on the host (the device reports raw counts);
 ``plant`` is read only by the simulated benches (``sim`` and ``simavr``), ``simavr``
-only by the firmware-in-the-loop bench (:mod:`tsa_bench.simavr`). Errors name the file and the key.
+only by the firmware-in-the-loop bench (:mod:`tsa_bench.simavr`).
+
+:func:`load_bench` / :func:`parse_bench` read the file with the hardened YAML reader
+(:mod:`tsa_bench.documents`) and validate all of it before anything is used: every
+key and value (finite numbers in range, limits the wire protocol can carry), the
+``port`` (:mod:`tsa_bench.bench.ports`), the ``plant`` of a simulated bench (built and
+sampled once across the bench limits, so a plant that cannot run is refused here and
+not half-way through a run) and the ``simavr`` section of a firmware-in-the-loop
+bench. Every error is one :class:`BenchConfigError` line ``file:line:col: key: what``.
 """
 
 from __future__ import annotations
@@ -14,17 +22,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from tsa_bench.bench.ports import PortPolicyError, check_port
+from tsa_bench.documents import DocumentError, YamlDocument, parse_yaml, read_text_file
 from tsa_bench.plan.limits import Limits
 
 #: Where the shipped bench files live when running from a source checkout.
 CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
 BACKENDS = ("sim", "serial", "simavr")
+KNOWN_KEYS = ("name", "backend", "port", "baud", "steps_per_turn", "limits", "watchdog_s", "queue_slots",
+              "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr")
+# What the wire protocol can carry (protocol/messages.md): i32 steps, u32 step rates,
+# u16 mV heater voltage, u16 ms watchdog, u8 queue slots.
+I32_MAX, U32_MAX, U16_MAX, U8_MAX = 2**31 - 1, 2**32 - 1, 2**16 - 1, 2**8 - 1
 
 
 class BenchConfigError(ValueError):
-    """A bench file that cannot be used; the message names file and key."""
+    """A bench file that cannot be used; the message names file, position and key."""
 
 
 @dataclass(frozen=True)
@@ -88,86 +101,170 @@ class BenchConfig:
         return int(round(turns * self.steps_per_turn))
 
 
-def _get(data: dict, key: str, where: str, kind: type | tuple, default: Any = ...) -> Any:
-    if key not in data:
-        if default is ...:
-            raise BenchConfigError(f"{where}: missing required key '{key}'")
-        return default
-    value = data[key]
-    if kind in (float, (int, float)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise BenchConfigError(f"{where}: '{key}' must be a finite number, got {value!r}")
-        return float(value)
-    if kind is int and (isinstance(value, bool) or not isinstance(value, int)):
-        raise BenchConfigError(f"{where}: '{key}' must be an integer, got {value!r}")
-    if kind is dict and not isinstance(value, dict):
-        raise BenchConfigError(f"{where}: '{key}' must be a mapping, got {value!r}")
-    return value
+class _Fields:
+    """Typed reads from the bench data, each error placed at its key in the file."""
+
+    def __init__(self, doc: YamlDocument) -> None:
+        self.doc = doc
+
+    def fail(self, path: tuple[str, ...], message: str) -> BenchConfigError:
+        return BenchConfigError(f"{self.doc.where(*path)}: {'.'.join(path)}: {message}")
+
+    def get(self, data: dict, path: tuple[str, ...], default: Any = ...) -> Any:
+        key = path[-1]
+        if key not in data:
+            if default is ...:
+                where = self.doc.where(*path[:-1]) if len(path) > 1 else self.doc.filename
+                scope = f"{'.'.join(path[:-1])}: " if len(path) > 1 else ""
+                raise BenchConfigError(f"{where}: {scope}missing required key '{key}'")
+            return default
+        return data[key]
+
+    def number(self, data: dict, path: tuple[str, ...], default: Any = ..., *, gt: float | None = None,
+               ge: float | None = None, le: float | None = None, unit: str = "") -> float:
+        value = self.get(data, path, default)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
+            raise self.fail(path, f"must be a finite number, got {value!r}")
+        value = float(value)
+        u = f" {unit}" if unit else ""
+        if gt is not None and not value > gt:
+            raise self.fail(path, f"must be > {gt:g}{u}, got {value:g}")
+        if ge is not None and value < ge:
+            raise self.fail(path, f"must be >= {ge:g}{u}, got {value:g}")
+        if le is not None and value > le:
+            raise self.fail(path, f"must be <= {le:g}{u}, got {value:g}")
+        return value
+
+    def integer(self, data: dict, path: tuple[str, ...], default: Any = ..., *, lo: int, hi: int) -> int:
+        value = self.get(data, path, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(path, f"must be an integer, got {value!r}")
+        if not lo <= value <= hi:
+            raise self.fail(path, f"{value} is outside {lo}..{hi}")
+        return value
+
+    def mapping(self, data: dict, path: tuple[str, ...], default: Any = ...) -> dict:
+        value = self.get(data, path, default)
+        if value is None and default is not ...:
+            return {}
+        if not isinstance(value, dict):
+            raise self.fail(path, f"must be a mapping, got {value!r}")
+        return value
+
+    def text(self, data: dict, path: tuple[str, ...]) -> str:
+        value = self.get(data, path)
+        if not isinstance(value, str) or not value.strip():
+            raise self.fail(path, f"must be non-empty text, got {value!r}")
+        return value
 
 
-def parse_bench(text: str, filename: str = "<string>") -> BenchConfig:
-    """Parse bench YAML text; raise BenchConfigError naming file and key."""
+def _limits(f: _Fields, data: dict, steps_per_turn: int) -> Limits:
+    raw = f.mapping(data, ("limits",))
+    for key in raw:
+        if key not in Limits.field_names():
+            raise f.fail(("limits", key), f"unknown key (allowed: {', '.join(Limits.field_names())})")
+    values = {k: (None if v is None else f.number(raw, ("limits", k))) for k, v in raw.items()}
+    wire = {"max_twist_turns": I32_MAX / steps_per_turn, "min_twist_turns": I32_MAX / steps_per_turn,
+            "max_rate_turns_per_s": U32_MAX / steps_per_turn, "max_accel_turns_per_s2": U32_MAX / steps_per_turn,
+            "max_heater_voltage_V": U16_MAX / 1000}
+    for key, value in values.items():
+        if value is not None and abs(value) > wire[key]:
+            raise f.fail(("limits", key), f"{value:g} is beyond what the device protocol can carry "
+                                          f"(at most {wire[key]:.6g} in magnitude with {steps_per_turn} steps/turn)")
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise BenchConfigError(f"{filename}: not valid YAML: {exc}") from None
-    if not isinstance(data, dict):
-        raise BenchConfigError(f"{filename}: a bench file is a mapping of keys")
-    known = {"name", "backend", "port", "baud", "steps_per_turn", "limits", "watchdog_s", "queue_slots",
-             "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr"}
-    for key in data:
-        if key not in known:
-            raise BenchConfigError(f"{filename}: unknown key '{key}' (allowed: {', '.join(sorted(known))})")
-    backend = _get(data, "backend", filename, str)
-    if backend not in BACKENDS:
-        raise BenchConfigError(f"{filename}: backend '{backend}' must be one of {BACKENDS}")
-    limits_map = _get(data, "limits", filename, dict)
-    try:
-        limits = Limits(**limits_map)
+        return Limits(**values)
     except (TypeError, ValueError) as exc:
-        raise BenchConfigError(f"{filename}: limits: {exc}") from None
-    pos = _get(data, "position_sensor", filename, dict)
-    res = _get(data, "resistance_sensor", filename, dict)
-    where_p, where_r = f"{filename}: position_sensor", f"{filename}: resistance_sensor"
-    steps_per_turn = _get(data, "steps_per_turn", filename, int)
-    if not 1 <= steps_per_turn <= 65535:
-        raise BenchConfigError(f"{filename}: steps_per_turn {steps_per_turn} outside 1..65535")
-    current = _get(res, "sense_current_A", where_r, float)
-    vref = _get(res, "vref_V", where_r, float)
-    if current <= 0 or vref <= 0:
-        raise BenchConfigError(f"{where_r}: sense_current_A and vref_V must be > 0")
-    bits = _get(res, "adc_bits", where_r, int, 20)
-    return BenchConfig(
-        name=str(_get(data, "name", filename, str)),
+        raise f.fail(("limits",), str(exc)) from None
+
+
+def _port(f: _Fields, data: dict, allow_url: bool) -> str | None:
+    port = data.get("port")
+    if port is None:
+        return None
+    try:
+        return check_port(port, allow_url=allow_url)
+    except PortPolicyError as exc:
+        raise f.fail(("port",), str(exc)) from None
+
+
+def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = False,
+                trust_firmware_dir: bool = False) -> BenchConfig:
+    """Parse and validate bench YAML text (module contract); raise BenchConfigError."""
+    try:
+        doc = parse_yaml(text, filename)
+        data = doc.data()
+    except DocumentError as exc:
+        raise BenchConfigError(str(exc)) from None
+    if not isinstance(data, dict):
+        raise BenchConfigError(f"{filename}: a bench file is a mapping of keys (allowed: {', '.join(KNOWN_KEYS)})")
+    f = _Fields(doc)
+    for key in data:
+        if key not in KNOWN_KEYS:
+            raise f.fail((key,), f"unknown key (allowed: {', '.join(sorted(KNOWN_KEYS))})")
+    backend = f.get(data, ("backend",))
+    if backend not in BACKENDS:
+        raise f.fail(("backend",), f"{backend!r} must be one of {', '.join(BACKENDS)}")
+    steps_per_turn = f.integer(data, ("steps_per_turn",), lo=1, hi=U16_MAX)
+    limits = _limits(f, data, steps_per_turn)
+    pos = f.mapping(data, ("position_sensor",))
+    res = f.mapping(data, ("resistance_sensor",))
+    for section, allowed in (("position_sensor", ("mm_per_count", "offset_mm")),
+                             ("resistance_sensor", ("sense_current_A", "vref_V", "adc_bits"))):
+        for key in data[section]:
+            if key not in allowed:
+                raise f.fail((section, key), f"unknown key (allowed: {', '.join(allowed)})")
+    mm_per_count = f.number(pos, ("position_sensor", "mm_per_count"), unit="mm/count")
+    if not 1e-9 <= abs(mm_per_count) <= 1e3:  # 1 nm .. 1 m per count
+        raise f.fail(("position_sensor", "mm_per_count"), f"must be 1e-9..1e3 mm/count in magnitude, "
+                                                          f"got {mm_per_count:g}")
+    current = f.number(res, ("resistance_sensor", "sense_current_A"), gt=0, le=100.0, unit="A")
+    vref = f.number(res, ("resistance_sensor", "vref_V"), gt=0, le=1000.0, unit="V")
+    bits = f.integer(res, ("resistance_sensor", "adc_bits"), 20, lo=2, hi=32)
+    if not vref / 2 ** (bits - 1) / current >= 1e-15:  # the calibration must be a usable number
+        raise f.fail(("resistance_sensor",), f"vref_V / 2^(adc_bits-1) / sense_current_A = "
+                                             f"{vref / 2 ** (bits - 1) / current:g} ohm/count is too small")
+    bench = BenchConfig(
+        name=f.text(data, ("name",)),
         backend=backend,
-        port=data.get("port"),
-        baud=_get(data, "baud", filename, int, 250000),
+        port=_port(f, data, allow_url),
+        baud=f.integer(data, ("baud",), 250000, lo=1, hi=100_000_000),
         steps_per_turn=steps_per_turn,
         limits=limits,
-        watchdog_s=_get(data, "watchdog_s", filename, float, 2.0),
-        queue_slots=_get(data, "queue_slots", filename, int, 16),
-        position=PositionCalibration(
-            mm_per_count=_get(pos, "mm_per_count", where_p, float),
-            offset_mm=_get(pos, "offset_mm", where_p, float),
-        ),
-        resistance=ResistanceCalibration(
-            ohm_per_count=vref / 2 ** (bits - 1) / current, sense_current_A=current, adc_bits=bits),
-        ack_timeout_s=_get(data, "ack_timeout_s", filename, float, 0.25),
-        boot_timeout_s=_get(data, "boot_timeout_s", filename, float, 3.0),
-        plant=_get(data, "plant", filename, dict, {}),
-        simavr=_get(data, "simavr", filename, dict, {}),
+        watchdog_s=f.number(data, ("watchdog_s",), 2.0, ge=0.001, le=U16_MAX / 1000, unit="s"),
+        queue_slots=f.integer(data, ("queue_slots",), 16, lo=1, hi=U8_MAX),
+        position=PositionCalibration(mm_per_count=mm_per_count,
+                                     offset_mm=f.number(pos, ("position_sensor", "offset_mm"), ge=-1e9, le=1e9,
+                                                        unit="mm")),
+        resistance=ResistanceCalibration(ohm_per_count=vref / 2 ** (bits - 1) / current, sense_current_A=current,
+                                         adc_bits=bits),
+        ack_timeout_s=f.number(data, ("ack_timeout_s",), 0.25, ge=0.001, le=10.0, unit="s"),
+        boot_timeout_s=f.number(data, ("boot_timeout_s",), 3.0, ge=0.0, le=600.0, unit="s"),
+        plant=f.mapping(data, ("plant",), {}),
+        simavr=f.mapping(data, ("simavr",), {}),
         source_text=text,
         path=filename,
     )
+    if bench.backend in ("sim", "simavr") or bench.plant:
+        from tsa_bench.bench.plant_check import check_plant  # the simulation, only for simulated benches
+
+        check_plant(bench, doc)
+    if bench.backend == "simavr" or bench.simavr:
+        from tsa_bench.simavr.launcher import simavr_settings
+
+        simavr_settings(bench, trust_firmware_dir=trust_firmware_dir)
+    return bench
 
 
-def load_bench(path: str | Path | None = None) -> BenchConfig:
-    """Load a bench file; ``None`` means the shipped simulated bench (configs/bench/sim.yaml)."""
+def load_bench(path: str | Path | None = None, *, allow_url: bool = False,
+               trust_firmware_dir: bool = False) -> BenchConfig:
+    """Load and validate a bench file; ``None`` means the shipped simulated bench (configs/bench/sim.yaml).
+
+    ``allow_url`` lets ``port`` be any pyserial URL; ``trust_firmware_dir`` lets a
+    simavr bench build firmware outside this checkout (see the module contract).
+    """
     p = Path(path) if path is not None else CONFIG_DIR / "sim.yaml"
     try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise BenchConfigError(f"{p}: bench file not found") from None
-    except OSError as exc:
-        raise BenchConfigError(f"{p}: cannot read bench file: {exc}") from None
-    return parse_bench(text, str(p))
+        text = read_text_file(p, "bench file")
+    except DocumentError as exc:
+        raise BenchConfigError(str(exc)) from None
+    return parse_bench(text, str(p), allow_url=allow_url, trust_firmware_dir=trust_firmware_dir)

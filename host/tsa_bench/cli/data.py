@@ -11,7 +11,7 @@ import sys
 
 import click
 
-from tsa_bench.cli.exits import EXIT_BAD_INPUT
+from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, fail
 
 
 @click.command()
@@ -40,8 +40,9 @@ def report(run_file: str, out_dir: str | None) -> None:
     try:
         rep = write_run_report(run_file, out_dir)
     except RunFileError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
+        fail(str(exc))
+    except OSError as exc:
+        fail(f"cannot write the report ({exc.filename or out_dir or run_file}): {exc.strerror or exc}", EXIT_FAILED)
     for fig in rep.figures:
         click.echo(f"wrote {fig.path}")
     for kind, why in rep.skipped.items():
@@ -64,14 +65,14 @@ def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: flo
     being written. Exit code 0 when the run ends in success, 1 when it ends otherwise or
     was killed, 2 when there is nothing to watch.
     """
-    from rich.console import Console
-
+    from tsa_bench.console.output import make_console
     from tsa_bench.console.watch import watch as do_watch
 
-    if interval_s <= 0:
-        click.echo("error: --interval must be > 0 (s)", err=True)
-        sys.exit(EXIT_BAD_INPUT)
-    console = Console(force_terminal=None if not plain else False, soft_wrap=plain)
+    if not 0 < interval_s <= 3600:
+        fail(f"--interval must be > 0 and at most 3600 s, got {interval_s}")
+    if not 0 <= wait_s <= 86400:
+        fail(f"--wait must be 0..86400 s, got {wait_s}")
+    console = make_console(terminal=False if plain else None)
     sys.exit(do_watch(run_file, plain=plain, once=once, interval_s=interval_s, wait_s=wait_s, console=console))
 
 
@@ -149,5 +150,6 @@ def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
         for path in export_csv(run_file, out_dir):
             click.echo(f"wrote {path}")
     except RunFileError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
+        fail(str(exc))
+    except OSError as exc:
+        fail(f"cannot write the CSV files ({exc.filename or out_dir}): {exc.strerror or exc}", EXIT_FAILED)

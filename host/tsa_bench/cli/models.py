@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
-from tsa_bench.cli.exits import EXIT_BAD_INPUT
+from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -22,9 +22,9 @@ if TYPE_CHECKING:
 MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing")
 
 
-def _fail(msg: str) -> None:
+def _fail(msg: str, code: int = EXIT_BAD_INPUT) -> NoReturn:
     click.echo(f"error: {msg}", err=True)
-    sys.exit(EXIT_BAD_INPUT)
+    sys.exit(code)
 
 
 def _read(paths: tuple[str, ...] | list[str]):
@@ -40,11 +40,10 @@ def _read(paths: tuple[str, ...] | list[str]):
 
 
 def _console() -> Console:
-    """A rich console; wide when not a terminal (pipes, tests) so no column is cut."""
-    from rich.console import Console
+    """A rich console that never wraps or cuts a line when not on a terminal (pipes, logs, tests)."""
+    from tsa_bench.console.output import make_console
 
-    console = Console()
-    return console if console.is_terminal else Console(width=160)
+    return make_console()
 
 
 def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> Table:
@@ -79,6 +78,10 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
     from tsa_bench.models.fitting import FitError, fit, fit_notes
     from tsa_bench.models.saved import ModelFileError, save_model
 
+    if not 1 <= levels <= 200:
+        _fail(f"--levels must be 1..200 (the thesis uses 20), got {levels}")
+    if load_g is not None and not 0 <= load_g < float("inf"):
+        _fail(f"--load-g must be a mass >= 0 g, got {load_g}")
     train = _read(runs)
     val = _read(validate)
     try:
@@ -87,7 +90,10 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
         _fail(str(exc))
     for note in fit_notes(saved, train):
         click.echo(f"note: {note}", err=True)
-    save_model(saved, out)
+    try:
+        save_model(saved, out)
+    except OSError as exc:
+        _fail(f"{out}: cannot write the model file ({exc.strerror or exc})")
     rows = [("identification", p, m) for p, m in saved.metrics["identification"].items()]
     rows += [("validation", p, m) for p, m in saved.metrics["validation"].items()]
     _console().print(_metrics_table(f"{model}: {saved.input['column']} -> {saved.output['column']}", rows))
@@ -115,34 +121,95 @@ def predict_cmd(model_file: str, run: str, write_prediction: bool) -> None:
         pred, metrics = evaluate(saved, data)
     except (FitError, ModelFileError) as exc:
         _fail(str(exc) if str(exc).startswith(run) else f"{model_file}: {exc}")
+    except (ValueError, TypeError, IndexError, KeyError, ArithmeticError) as exc:  # parameters from a file
+        _fail(f"{model_file}: its parameters do not make a {saved.model} model ({type(exc).__name__}: {exc})")
     _console().print(_metrics_table(f"{saved.model} ({Path(model_file).name}): "
                                    f"{saved.input['column']} -> {saved.output['column']}",
                                    [("prediction", run, metrics)]))
     if write_prediction:
         name = f"predicted_{saved.output['column']}"
-        with h5py.File(run, "a") as f:
-            g = f["samples"]
-            if name in g:
-                del g[name]
-            ds = g.create_dataset(name, data=pred)
-            ds.attrs["units"] = saved.output["unit"]
-            ds.attrs["model_file"] = str(model_file)
+        try:
+            with h5py.File(run, "a") as f:
+                g = f["samples"]
+                if name in g:
+                    del g[name]
+                ds = g.create_dataset(name, data=pred)
+                ds.attrs["units"] = saved.output["unit"]
+                ds.attrs["model_file"] = str(model_file)
+        except (OSError, RuntimeError, ValueError) as exc:
+            _fail(f"{run}: cannot write the prediction into the run file ({exc})", EXIT_FAILED)
         click.echo(f"prediction written to {run}:/samples/{name}")
 
 
-def _manipulator_config(path: str) -> dict[str, Any]:
-    import yaml
+#: The manipulator file's sections and keys: (low, high) bounds, "int" for whole numbers.
+_MANIPULATOR_KEYS: dict[str, dict[str, tuple]] = {
+    "geometry": {"l0_m": (1e-6, 100.0), "r_m": (1e-6, 100.0), "w0_m": (1e-9, 1.0)},
+    "twist": {"min_turns": (-1e4, 1e4), "max_turns": (-1e4, 1e4), "points": (2, 10_000, "int")},
+    "velocity": {"rate_hz": (1.0, 1e4), "duration_s": (1e-3, 3600.0), "motor_rev_per_s": (-1e3, 1e3),
+                 "initial_turns": (-1e4, 1e4)},
+    "control": {"kp": (0.0, 1e6), "v_min": (0.0, 1e4), "v_max": (0.0, 1e4), "motor_rev_per_s_per_V": (-1e3, 1e3),
+                "deadband_deg": (0.0, 360.0), "random_setpoints": (1, 1000, "int"), "seed": (0, 2**32 - 1, "int"),
+                "step_s": (1e-3, 3600.0), "setpoints_deg": None},
+}
+#: Most samples one simulation of the manipulator may take (rate x duration).
+MAX_MANIPULATOR_SAMPLES = 1_000_000
 
-    p = Path(path)
-    if not p.exists():
-        _fail(f"{p}: no such file")
+
+def _manipulator_config(path: str) -> dict[str, Any]:
+    """The manipulator YAML, read with the hardened reader and checked key by key."""
+    from tsa_bench.documents import DocumentError, read_yaml
+
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        _fail(f"{p}: not valid YAML ({exc})")
-    if not isinstance(doc, dict) or not isinstance(doc.get("geometry"), dict):
-        _fail(f"{p}: needs a 'geometry' mapping {{l0_m, r_m, w0_m}}")
-    return doc
+        doc = read_yaml(path, what="manipulator file")
+        data = doc.data()
+    except DocumentError as exc:
+        _fail(str(exc))
+    if not isinstance(data, dict) or not isinstance(data.get("geometry"), dict):
+        _fail(f"{path}: needs a 'geometry' mapping {{l0_m, r_m, w0_m}}")
+    out: dict[str, Any] = {}
+    for section, value in data.items():
+        if section not in _MANIPULATOR_KEYS:
+            _fail(f"{doc.where(section)}: unknown section '{section}' (allowed: {', '.join(_MANIPULATOR_KEYS)})")
+        if not isinstance(value, dict):
+            _fail(f"{doc.where(section)}: {section}: must be a mapping, got {value!r}")
+        out[section] = {}
+        for key, v in value.items():
+            bounds = _MANIPULATOR_KEYS[section].get(key, ...)
+            where = f"{doc.where(section, key)}: {section}.{key}"
+            if bounds is ...:
+                _fail(f"{where}: unknown key (allowed: {', '.join(_MANIPULATOR_KEYS[section])})")
+            if bounds is None:  # setpoints_deg: a list of angles
+                if not (isinstance(v, list) and 0 < len(v) <= 1000 and all(
+                        isinstance(x, (int, float)) and not isinstance(x, bool) and -360 <= x <= 360 for x in v)):
+                    _fail(f"{where}: must be a list of 1..1000 angles in -360..360 deg")
+                out[section][key] = [float(x) for x in v]
+                continue
+            whole = len(bounds) == 3
+            if isinstance(v, bool) or not isinstance(v, int if whole else (int, float)) \
+                    or not bounds[0] <= v <= bounds[1]:
+                kind = "a whole number" if whole else "a number"
+                _fail(f"{where}: must be {kind} in {bounds[0]:g}..{bounds[1]:g}, got {v!r}")
+            out[section][key] = v
+    vel = out.get("velocity", {})
+    if vel.get("rate_hz", 53.9) * vel.get("duration_s", 7.5) > MAX_MANIPULATOR_SAMPLES:
+        _fail(f"{doc.where('velocity')}: velocity: rate_hz x duration_s is more than {MAX_MANIPULATOR_SAMPLES:,} samples")
+    if vel.get("rate_hz", 53.9) * vel.get("duration_s", 7.5) < 400:
+        _fail(f"{doc.where('velocity')}: velocity: rate_hz x duration_s must give at least 400 samples "
+              "(the 151-sample derivative filter)")
+    ctl = out.get("control", {})
+    steps = len(ctl.get("setpoints_deg") or [0] * ctl.get("random_setpoints", 5))
+    if steps * ctl.get("step_s", 20.0) * vel.get("rate_hz", 53.9) > MAX_MANIPULATOR_SAMPLES:
+        _fail(f"{doc.where('control')}: control: set-points x step_s x rate_hz is more than "
+              f"{MAX_MANIPULATOR_SAMPLES:,} samples")
+    return out
+
+
+def _p_control(simulate, setpoints, geom, ctl: dict[str, Any], rate: float):
+    return simulate(setpoints, geom, kp_V_per_deg=float(ctl.get("kp", 5.0)),
+                    v_min=float(ctl.get("v_min", 2.4)), v_max=float(ctl.get("v_max", 12.0)),
+                    speed_rev_per_s_per_V=float(ctl.get("motor_rev_per_s_per_V", 1.90 / 3.6)),
+                    deadband_deg=float(ctl.get("deadband_deg", 0.5)), step_s=float(ctl.get("step_s", 20.0)),
+                    rate_hz=rate)
 
 
 @click.command("manipulator")
@@ -164,7 +231,7 @@ def manipulator_cmd(config: str) -> None:
         vel = doc.get("velocity", {})
         ctl = doc.get("control", {})
     except (TypeError, ValueError) as exc:
-        _fail(f"{config}: {exc}")
+        _fail(f"{config}: geometry: {exc}")
     console = _console()
     theta = np.degrees(bending_angle(turns * TWO_PI, geom))
     theta_c = np.degrees(bending_angle(turns * TWO_PI, geom, radius_growth=False))
@@ -196,11 +263,10 @@ def manipulator_cmd(config: str) -> None:
     console.print(vt)
     rng = np.random.default_rng(int(ctl.get("seed", 0)))
     setpoints = ctl.get("setpoints_deg") or list(rng.uniform(0, 60, int(ctl.get("random_setpoints", 5))))
-    results, _ = simulate_p_control(np.asarray(setpoints, float), geom, kp_V_per_deg=float(ctl.get("kp", 5.0)),
-                                    v_min=float(ctl.get("v_min", 2.4)), v_max=float(ctl.get("v_max", 12.0)),
-                                    speed_rev_per_s_per_V=float(ctl.get("motor_rev_per_s_per_V", 1.90 / 3.6)),
-                                    deadband_deg=float(ctl.get("deadband_deg", 0.5)),
-                                    step_s=float(ctl.get("step_s", 20.0)), rate_hz=rate)
+    try:
+        results, _ = _p_control(simulate_p_control, np.asarray(setpoints, float), geom, ctl, rate)
+    except ValueError as exc:
+        _fail(f"{config}: control: {exc}")
     ct = Table(title=f"P control (Kp = {ctl.get('kp', 5.0)}, {ctl.get('v_min', 2.4)} V < Vm < {ctl.get('v_max', 12.0)} V)")
     for c in ("set-point deg", "from deg", "rise time s (10-90 %)", "steady-state error deg"):
         ct.add_column(c, justify="right")

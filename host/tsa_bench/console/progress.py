@@ -15,6 +15,8 @@ from rich.console import Console
 from rich.live import Live
 from rich.text import Text
 
+from tsa_bench.console.output import make_console
+
 from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 
@@ -29,7 +31,7 @@ class ProgressDisplay:
     """Rich live line; see the module contract."""
 
     def __init__(self, console: Console | None = None) -> None:
-        self.console = console or Console(stderr=True)
+        self.console = console or make_console(stderr=True)
         self.enabled = self.console.is_terminal
         self._live: Live | None = None
         self.n_segments = 0
@@ -88,7 +90,8 @@ class ProgressDisplay:
         if e.kind in ("prompt", "sample_gap", "fault", "queue_underrun", "stop_sent"):
             self.notes += 1
             if self._live is not None:
-                self._live.console.print(f"[yellow]{hms(e.t)} {e.kind}: {e.detail}")
+                # a Text, not markup: a prompt or a reason may hold "[" and "]"
+                self._live.console.print(Text(f"{hms(e.t)} {e.kind}: {e.detail}", style="yellow"))
 
     def on_stop(self, stop: RunStop) -> None:
         if self._live is not None:

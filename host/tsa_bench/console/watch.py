@@ -24,6 +24,8 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
+from tsa_bench.console.output import make_console
+
 from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
 
 _BARS = "▁▂▃▄▅▆▇█"
@@ -129,6 +131,18 @@ def _summary_from_file(run_path: Path, echo: Callable[[str], None]) -> int:
     return 0 if run.exit_status == "success" else 1
 
 
+def _being_written(run_path: Path) -> bool:
+    """The run file is open for writing by another process (HDF5's file lock says so):
+    a run starting up, whose sidecar appears a moment after the run file."""
+    from tsa_bench.store import RunFileError, read_run
+
+    try:
+        read_run(run_path)
+    except RunFileError as exc:
+        return "lock" in str(exc).lower()
+    return False
+
+
 def _open_tail(run_path: Path, wait_s: float) -> LiveTail | None:
     deadline = time.monotonic() + wait_s
     side = sidecar_path(run_path)
@@ -136,7 +150,7 @@ def _open_tail(run_path: Path, wait_s: float) -> LiveTail | None:
         try:
             return LiveTail(side)
         except FileNotFoundError:
-            if run_path.exists() or time.monotonic() >= deadline:
+            if time.monotonic() >= deadline or (run_path.exists() and not _being_written(run_path)):
                 return None
         time.sleep(0.1)
 
@@ -145,7 +159,7 @@ def watch(run_path: str | Path, *, plain: bool = False, once: bool = False, inte
           wait_s: float = 0.0, console: Console | None = None) -> int:
     """Follow ``run_path``; see the module contract."""
     run_path = Path(run_path)
-    console = console or Console()
+    console = console or make_console()
     def echo(text: str) -> None:  # a message is one line however narrow the terminal: never hard-wrapped
         console.print(text, markup=False, highlight=False, soft_wrap=True)
 
@@ -154,13 +168,16 @@ def watch(run_path: str | Path, *, plain: bool = False, once: bool = False, inte
     except LiveFormatError as exc:
         echo(f"error: {exc}")
         return 2
+    except OSError as exc:
+        echo(f"error: {sidecar_path(run_path)}: cannot read the live sidecar ({exc.strerror or exc})")
+        return 2
     if tail is None:
         if not run_path.exists():
             echo(f"error: {run_path}: no such run file and no live sidecar {sidecar_path(run_path)}")
             return 2
         return _summary_from_file(run_path, echo)
     head = tail.header
-    state = WatchState(int(head.get("n_segments", 0)))
+    state = WatchState(head.get("n_segments", 0))
     title = f"{head.get('plan_name', '')}  ({run_path.name})"
     live = None
     try:

@@ -5,15 +5,24 @@ Mega's port resets it through DTR), discards stale input, and completes the
 HELLO/IDENTITY handshake, refusing a device with another protocol version or
 catalogue. ``command()`` sends one host command with a fresh sequence number and
 waits for its ACK, retransmitting the identical frame on timeout (the device
-recognises the repeated sequence number and does not execute it twice). Every other
-message that arrives meanwhile is kept, in order, for ``poll()``. The client never
-sleeps on wall time except while waiting for bytes from the port.
+recognises the repeated sequence number and does not execute it twice) for as long
+as the device's watchdog could still be waiting for it (the retry budget: the
+watchdog period plus two ACK timeouts; IDENTITY's ``watchdog_ms``, the bench file's
+``watchdog_s`` before the handshake), so a line that stalls for less than the
+watchdog never fails a command. Every other message that arrives meanwhile is kept,
+in order, for ``poll()``. Device frames pass the link layer first
+(:class:`~tsa_bench.device.link.FrameSequencer`): duplicates are dropped and
+reordered frames put back in order; its counters are :attr:`BenchClient.link`.
+The client never sleeps on wall time except while waiting for bytes from the port;
+``on_wait`` (if set) is called while it waits, so a caller can break a long wait
+(the runner raises KeyboardInterrupt from it when the user asked to stop).
 """
 
 from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import serial
@@ -21,6 +30,7 @@ import serial
 from tsa_bench.device.errors import (
     CommandRefused, ConnectionLost, DeviceMismatch, DeviceNotFound, NoAcknowledgement,
 )
+from tsa_bench.device.link import FrameSequencer, LinkStats
 from tsa_bench.protocol import MessageDecoder, encode, msg, spec_of
 
 READ_CHUNK = 4096
@@ -29,17 +39,32 @@ READ_CHUNK = 4096
 class BenchClient:
     """Framed-protocol session on an open port (``serial.Serial`` or ``sim://``)."""
 
-    def __init__(self, port: Any, *, ack_timeout_s: float = 0.25, retries: int = 4) -> None:
+    def __init__(self, port: Any, *, ack_timeout_s: float = 0.25, watchdog_s: float = 2.0) -> None:
         self.port = port
         self.ack_timeout_s = ack_timeout_s
-        self.retries = retries
+        self.watchdog_s = watchdog_s
         self.identity: msg.Identity | None = None
         self.boot: msg.Boot | None = None
         self.retransmissions = 0
+        self.late_dropped = 0
         self.last_tx_wall = time.monotonic()
+        self.on_wait: Callable[[], None] | None = None
         self._seq = 0
         self._decoder = MessageDecoder()
+        self._sequencer = FrameSequencer()
         self._inbox: deque[NamedTuple] = deque()
+        self._last_dev_us: int | None = None
+        self._late_acks: list[msg.Ack] = []
+
+    @property
+    def retry_budget_s(self) -> float:
+        """How long a command is retransmitted without an ACK: the watchdog plus two timeouts."""
+        return self.watchdog_s + 2 * self.ack_timeout_s
+
+    @property
+    def link(self) -> LinkStats:
+        """Link-layer counters (duplicates dropped, frames restored to order, lost, late)."""
+        return self._sequencer.stats
 
     # -- bytes ------------------------------------------------------------
     @property
@@ -54,7 +79,18 @@ class BenchClient:
             data = self.port.read(min(max(1, waiting), READ_CHUNK))
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
-        return [f.message for f in self._decoder.feed(data)] if data else []
+        frames = self._sequencer.push(self._decoder.feed(data) if data else [])
+        out = [f.message for f in frames]
+        for late in self._sequencer.take_late():
+            if isinstance(late.message, msg.Ack):
+                self._late_acks.append(late.message)  # may still answer the command awaited now
+            else:
+                self.late_dropped += 1    # a late sample or event would be out of order
+        for m in out:
+            t_us = getattr(m, "t_us", None)
+            if t_us is not None:
+                self._last_dev_us = t_us
+        return out
 
     def _write(self, frame: bytes) -> None:
         try:
@@ -80,12 +116,14 @@ class BenchClient:
             self.port.reset_input_buffer()
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
+        self._sequencer.reset()
         for _attempt in range(3):
             self._write(encode(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH), self._next_seq()))
             reply = self._await(lambda m: isinstance(m, (msg.Identity, msg.Ack)), self.ack_timeout_s * 4)
             if isinstance(reply, msg.Identity):
                 self._check_identity(reply)
                 self.identity = reply
+                self.watchdog_s = reply.watchdog_ms / 1000.0
                 return reply
             if isinstance(reply, msg.Ack) and reply.acked_id == 0x01:
                 raise DeviceMismatch(
@@ -120,8 +158,10 @@ class BenchClient:
         seconds ahead (and trip its own watchdog) while the host waits for an ACK.
         """
         deadline = time.monotonic() + timeout_s
-        t0_us: int | None = None
+        t0_us: int | None = self._last_dev_us  # device time when the wait began (as last seen)
         while True:
+            if self.on_wait is not None:
+                self.on_wait()
             found = None
             t_us = None
             for m in self._read():
@@ -130,6 +170,8 @@ class BenchClient:
                 else:
                     self._inbox.append(m)  # everything else, in order, for poll()
                 t_us = getattr(m, "t_us", t_us)
+            late, self._late_acks = self._late_acks, []
+            found = found or next((m for m in late if predicate(m)), None)
             if found is not None:
                 return found
             if t_us is not None:
@@ -148,10 +190,13 @@ class BenchClient:
         spec = spec_of(message)
         seq = self._next_seq()
         frame = encode(message, seq)
-        for attempt in range(self.retries + 1):
-            if attempt:
+        wall0, dev0 = time.monotonic(), self._last_dev_us
+        transmissions = 0
+        while True:
+            if transmissions:
                 self.retransmissions += 1
             self._write(frame)
+            transmissions += 1
             ack = self._await(lambda m: isinstance(m, msg.Ack) and m.acked_seq == seq, self.ack_timeout_s)
             if ack is not None:
                 if check and ack.status != msg.Status.OK:
@@ -159,9 +204,14 @@ class BenchClient:
                                          f"device refused {spec.name} {tuple(message)}: "
                                          f"{msg.Status(ack.status).name.lower()}")
                 return ack
-        raise NoAcknowledgement(
-            f"no ACK for {spec.name} after {self.retries + 1} transmissions of "
-            f"{self.ack_timeout_s:.2f} s on {self._port_name()}")
+            waited_s = time.monotonic() - wall0
+            if dev0 is not None and self._last_dev_us is not None:
+                waited_s = max(waited_s, (self._last_dev_us - dev0) / 1e6)
+            if transmissions >= 2 and waited_s >= self.retry_budget_s:
+                raise NoAcknowledgement(
+                    f"no ACK for {spec.name} after {transmissions} transmissions over {waited_s:.2f} s on "
+                    f"{self._port_name()} (retried for the device's {self.watchdog_s:g} s watchdog and two "
+                    f"{self.ack_timeout_s:g} s timeouts)")
 
     def poll(self) -> list[NamedTuple]:
         """Everything received since the last poll (reads the port once if nothing is kept)."""

@@ -1,7 +1,7 @@
 """Load, validate and compile a YAML protocol into a :class:`~tsa_bench.plan.model.Plan`.
 
 Top-level keys: ``name`` (required), ``description``, ``metadata`` (free-form mapping),
-``load_g`` (initial hanging mass, >= 0), ``sampling_period_s`` (0.001 .. 60 s, default
+``load_g`` (initial hanging mass, 0 .. 4294967.295 g), ``sampling_period_s`` (0.001 .. 60 s, default
 0.1), ``limits`` (any subset of :class:`Limits` fields; may only tighten the bench),
 ``defaults`` (``rate_turns_per_s``, ``accel_turns_per_s2`` for moves lacking them) and
 ``steps`` (required, non-empty; see :mod:`tsa_bench.plan.steps`).
@@ -18,11 +18,14 @@ from typing import Any
 import yaml
 from yaml import MappingNode, Node
 
+from tsa_bench.documents import DocumentError, parse_yaml, read_text_file
 from tsa_bench.plan.compiler import compile_ops, outer_cycles
 from tsa_bench.plan.errors import ErrorSink, PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits, loosening_problem
 from tsa_bench.plan.model import Plan
-from tsa_bench.plan.steps import MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser
+from tsa_bench.plan.steps import (
+    MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser,
+)
 from tsa_bench.plan.yamlnodes import NULL_TAG, Reader
 
 DEFAULT_SAMPLING_PERIOD_S = 0.1
@@ -46,17 +49,9 @@ def load_plan(path: str | Path, limits: Limits) -> Plan:
     """
     name = str(path)
     try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise PlanErrors([PlanError(name, None, None, "", f"protocol file not found: {name}")]) from None
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise PlanErrors([PlanError(name, None, None, "", f"cannot read protocol file {name}: {reason}")]) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        message = f"not UTF-8 text (bad byte at offset {exc.start})"
-        raise PlanErrors([PlanError(name, None, None, "", message)]) from None
+        text = read_text_file(path, "protocol file")
+    except DocumentError as exc:
+        raise PlanErrors([_plan_error(exc)]) from None
     return _load(text, limits, name, name)
 
 
@@ -65,22 +60,23 @@ def load_plan_text(text: str, limits: Limits, filename: str = "<string>") -> Pla
     return _load(text, limits, filename, None)
 
 
-def _compose(text: str, sink: ErrorSink) -> Node | None:
+def _plan_error(exc: DocumentError) -> PlanError:
+    return PlanError(exc.file, exc.line, exc.column, "", exc.message)
+
+
+def _compose(text: str, filename: str, sink: ErrorSink) -> Node | None:
+    """The checked node graph of the hardened YAML reader (:mod:`tsa_bench.documents`)."""
     try:
-        return yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        detail = "; ".join(p for p in (exc.context, exc.problem) if p)
-        sink.add(mark, "", f"YAML syntax error: {detail}")
-    except yaml.YAMLError as exc:  # e.g. ReaderError for control characters
-        sink.add(None, "", f"YAML error: {exc}")
+        return parse_yaml(text, filename).root
+    except DocumentError as exc:
+        sink.errors.append(_plan_error(exc))
     return None
 
 
 def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
     sink = ErrorSink(filename)
     reader = Reader(sink)
-    root = _compose(text, sink)
+    root = _compose(text, filename, sink)
     sink.raise_if_any()
     allowed_top = ", ".join(TOP_LEVEL_KEYS)
     if root is None:
@@ -96,7 +92,8 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
     metadata = _metadata(reader, top.get("metadata"))
     load_g = None
     if "load_g" in top and top["load_g"].tag != NULL_TAG:
-        load_g = reader.number(top["load_g"], "load_g", "g", ge=0)
+        load_g = reader.number(top["load_g"], "load_g", "g", ge=0, le=MAX_LOAD_G,
+                               le_name="what a bench command carries")
     period_s: float | None = DEFAULT_SAMPLING_PERIOD_S
     if "sampling_period_s" in top:
         period_s = reader.number(top["sampling_period_s"], "sampling_period_s", "s",

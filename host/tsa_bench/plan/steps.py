@@ -5,10 +5,10 @@ Step kinds (each step is a one-key mapping ``{kind: {...}}``):
 ==================  =====================================================================
 move_to             ``turns`` (absolute target), optional ``rate_turns_per_s``, ``accel_turns_per_s2``
 move_by             ``turns`` (relative to the previous target), optional rate/accel
-hold                ``duration_s`` (> 0)
+hold                ``duration_s`` (> 0, at most 7 days)
 heater              ``voltage_V`` (0 .. max_heater_voltage_V)
 sampling            ``period_s`` (0.001 .. 60 s)
-prompt              ``text``, optional ``load_g`` (new hanging mass, >= 0, or null)
+prompt              ``text``, optional ``load_g`` (new hanging mass, 0 .. 4294967.295 g, or null)
 rotation_sequence   ``targets_turns`` (absolute), ``hold_s`` (>= 0, after each), optional rate/accel
 voltage_steps       ``voltages_V``, ``hold_s`` (>= 0, after each voltage)
 repeat              ``count`` (integer >= 1), ``steps`` (nestable)
@@ -35,6 +35,10 @@ from tsa_bench.plan.yamlnodes import NULL_TAG, STR_TAG, Reader, describe
 MIN_SAMPLING_PERIOD_S = 0.001
 MAX_SAMPLING_PERIOD_S = 60.0
 MAX_REPEAT_DEPTH = 8
+#: Longest single hold (s), 7 days: the device runs it as DWELLs of at most 4294.967 s each.
+MAX_HOLD_S = 7 * 24 * 3600.0
+#: Largest hanging mass (g): what a bench command carries (SIM_SET_LOAD, u32 milligrams).
+MAX_LOAD_G = (2**32 - 1) / 1000
 
 STEP_KINDS: tuple[str, ...] = (
     "move_to", "move_by", "hold", "heater", "sampling", "prompt",
@@ -175,7 +179,9 @@ class StepParser:
         return default
 
     def _hold_after(self, fields: dict[str, Node], field: str) -> float | None:
-        return self.reader.number(fields["hold_s"], f"{field}.hold_s", "s", ge=0) if "hold_s" in fields else None
+        if "hold_s" not in fields:
+            return None
+        return self.reader.number(fields["hold_s"], f"{field}.hold_s", "s", ge=0, le=MAX_HOLD_S, le_name="7 days")
 
     def _voltage(self, node: Node, field: str) -> float | None:
         return self.reader.number(node, field, "V", ge=0, le=self.limits.max_heater_voltage_V,
@@ -202,7 +208,8 @@ class StepParser:
         fields = self.reader.mapping(node, field, ("duration_s",), required=("duration_s",))
         if not fields or "duration_s" not in fields:
             return None
-        duration = self.reader.number(fields["duration_s"], f"{field}.duration_s", "s", gt=0)
+        duration = self.reader.number(fields["duration_s"], f"{field}.duration_s", "s", gt=0, le=MAX_HOLD_S,
+                                      le_name="7 days")
         return None if duration is None else [ActionOp(Hold(duration), source)]
 
     def _heater(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
@@ -228,7 +235,8 @@ class StepParser:
         load_node = fields.get("load_g")
         load: float | None = None
         if load_node is not None and load_node.tag != NULL_TAG:
-            load = self.reader.number(load_node, f"{field}.load_g", "g", ge=0)
+            load = self.reader.number(load_node, f"{field}.load_g", "g", ge=0, le=MAX_LOAD_G,
+                                      le_name="what a bench command carries")
             if load is None:
                 return None
         return None if text is None else [ActionOp(Prompt(text, load), source)]

@@ -53,7 +53,8 @@ def run_label(run: RunData) -> str:
 
 
 def title(fig, what: str, run: RunData) -> None:
-    fig.suptitle(f"{what}\n{run_label(run)}", fontsize=11)
+    # parse_math=False: a plan or file name is text, even with a '$' in it (no mathtext)
+    fig.suptitle(f"{what}\n{run_label(run)}", fontsize=11, parse_math=False)
 
 
 def time_scale(t: np.ndarray) -> tuple[float, str]:

@@ -44,7 +44,7 @@ def _attr_rows(attrs: dict[str, Any]) -> list[tuple[str, str]]:
         try:
             for k, v in json.loads(meta).items():
                 rows.append((f"metadata: {k}", json.dumps(v) if not isinstance(v, str) else v))
-        except (ValueError, AttributeError):
+        except (ValueError, AttributeError, TypeError):  # not the JSON object the contract says
             rows.append(("metadata", str(meta)))
     return rows
 

@@ -33,12 +33,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
 from yaml import Node
 
 from tsa_bench.plan.errors import ErrorSink
 from tsa_bench.plan.yamlnodes import Reader
-from tsa_bench.reproduce.records import RECORDS_DIR, Record, RecordsError
+from tsa_bench.reproduce.records import RECORDS_DIR, Record, RecordsError, read_document
 
 PLAN_FILE = RECORDS_DIR / "calibration.yaml"
 MANIPULATOR = "manipulator"
@@ -118,16 +117,10 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
     reader = Reader(sink)
     ids = {r.id for r in records}
     presets = _presets()
-    try:
-        root = yaml.compose(p.read_text(encoding="utf-8"), Loader=yaml.SafeLoader)
-    except OSError as exc:
-        sink.add(None, "", f"cannot read ({exc})")
-        raise RecordsError(sink.errors) from None
-    except yaml.MarkedYAMLError as exc:
-        sink.add(exc.problem_mark, "", f"YAML syntax error: {exc.problem}")
-        raise RecordsError(sink.errors) from None
+    root = read_document(p, "calibration plan", sink)
     if root is None:
-        sink.add(None, "", "the plan is empty")
+        if not sink.errors:
+            sink.add(None, "", "the plan is empty")
         raise RecordsError(sink.errors)
     top = reader.mapping(root, "", ("built_from", "fits", "reasons"), ("fits",)) or {}
     built: dict[str, dict[str, str]] = {}

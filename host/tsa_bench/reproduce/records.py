@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
 from yaml import Node
 
+from tsa_bench.documents import DocumentError, read_yaml
 from tsa_bench.plan.errors import ErrorSink, PlanError
 from tsa_bench.plan.yamlnodes import Reader, describe
 from tsa_bench.units import UnitError, parse_unit
@@ -99,15 +99,14 @@ class Record:
         return f"{rel}{self.value:g}{sd} {self.unit}"
 
 
-def _compose(text: str, sink: ErrorSink) -> Node | None:
+def read_document(path: Path, what: str, sink: ErrorSink) -> Node | None:
+    """The file's YAML node graph through the one hardened reader (tsa_bench.documents), or None
+    with the problem (file:line:col) recorded in ``sink``."""
     try:
-        return yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        sink.add(mark, "", "YAML syntax error: " + "; ".join(p for p in (exc.context, exc.problem) if p))
-    except yaml.YAMLError as exc:
-        sink.add(None, "", f"YAML error: {exc}")
-    return None
+        return read_yaml(path, what=what).root
+    except DocumentError as exc:
+        sink.errors.append(PlanError(exc.file, exc.line, exc.column, "", exc.message))
+        return None
 
 
 def _merge(defaults: dict[str, Any], rec: dict[str, Any]) -> dict[str, Any]:
@@ -130,12 +129,7 @@ class _FileReader:
         self.seen = seen
 
     def read(self) -> list[Record]:
-        try:
-            text = self.path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            self.sink.add(None, "", f"cannot read ({exc})")
-            return []
-        root = _compose(text, self.sink)
+        root = read_document(self.path, "thesis record file", self.sink)
         if root is None:
             if not self.sink:
                 self.sink.add(None, "", "the file is empty", ", ".join(FILE_KEYS))
@@ -318,10 +312,7 @@ def load_records(paths: list[str | Path] | None = None) -> list[Record]:
     out: list[Record] = []
     for path in files:
         sink = ErrorSink(str(path))
-        if not path.exists():
-            sink.add(None, "", "no such file")
-        else:
-            out += _FileReader(path, sink, seen).read()
+        out += _FileReader(path, sink, seen).read()
         errors += sink.errors
     if errors:
         raise RecordsError(errors)

@@ -6,7 +6,9 @@ once first, then any interleaving of ``on_samples``, ``on_segment`` and ``on_eve
 in device-time order per kind, then ``on_stop`` exactly once (also after an abort or
 a failure, so a consumer can close cleanly). Times are seconds of device time since
 the run started. Consumers must not raise; a consumer that does ends the run as
-failed.
+failed. A consumer that runs out of room raises :class:`StorageFull` (message
+"disk full: ..."), which ends the run as failed with that reason, and must still
+close cleanly in ``on_stop``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,10 @@ SAMPLE_COLUMNS: dict[str, tuple[str, str]] = {
     "resistance_raw": ("i4", "count"),
     "adc_flags": ("u1", "1"),
 }
+
+
+class StorageFull(OSError):
+    """A consumer has no room left to store the run; the message starts with "disk full"."""
 
 
 @dataclass

@@ -9,10 +9,23 @@ only waits for bytes. It always ends with ``on_stop``: "success" when every segm
 is done, "aborted" on Ctrl-C (after an immediate STOP, which also turns the heater
 off), "failed" on a device fault, a refused command or a lost connection, keeping
 everything received so far.
+
+Signals (:mod:`tsa_bench.runner.interrupts`): SIGINT and SIGTERM are taken over for
+the run (when it runs in the main thread) and acted on only at safe points, so the
+first one always leads to STOP and a file closed "aborted", even when it arrives
+during a flush; a second one only hurries the end. A signal that arrives after the
+last segment but before the file is closed still ends the run "aborted" (the user
+asked to stop; STOP is sent to an idle device).
+
+Link: samples are stored in counter order, each once: a sample whose counter is not
+after the last stored one (a duplicate or a late frame the link layer let through) is
+dropped and counted (``samples_discarded``), and ``samples_lost`` is exactly the sum of
+the counter gaps in the stored rows.
 """
 
 from __future__ import annotations
 
+import signal
 import time
 from typing import NamedTuple, Sequence
 
@@ -20,15 +33,16 @@ import numpy as np
 
 from tsa_bench.bench import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
-from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling
+from tsa_bench.plan import Move, Plan, Prompt, Segment
 from tsa_bench.protocol import msg
+from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
 from tsa_bench.runner.documents import (
-    SAMPLE_COLUMNS, EventRecord, RunConsumer, RunStart, RunStop, SampleBlock, SegmentRecord,
+    SAMPLE_COLUMNS, EventRecord, RunConsumer, RunStart, RunStop, SampleBlock, SegmentRecord, StorageFull,
 )
+from tsa_bench.runner.interrupts import Interrupts
 from tsa_bench.runner.operator import Operator
 
-NO_SEGMENT = 0xFFFF           # wire value for commands outside the plan (setup, teardown)
-WIRE_SEGMENTS = 0xFFFF        # plan indices travel modulo this; the host unwraps them
+COUNTER_MOD = 1 << 32         # SAMPLE.counter is a u32
 G_N_PER_G = 9.80665e-3        # weight of one gram, N
 BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
 BLOCK_WALL_S = 0.5            # or this much wall time has passed, or a segment ends
@@ -71,19 +85,23 @@ class Runner:
     """Runs one plan on a connected :class:`BenchClient`; see the module contract."""
 
     def __init__(self, client: BenchClient, plan: Plan, bench: BenchConfig, consumers: Sequence[RunConsumer],
-                 operator: Operator, *, backend: str, port_name: str) -> None:
+                 operator: Operator, *, backend: str, port_name: str, interrupts: Interrupts | None = None) -> None:
         if client.identity is None:
             raise ValueError("connect the client before running")
         self.client, self.plan, self.bench = client, plan, bench
         self.consumers = list(consumers)
         self.operator = operator
         self.backend, self.port_name = backend, port_name
+        self.interrupts = interrupts if interrupts is not None else Interrupts()
         self.ident: msg.Identity = client.identity
         self.spt = self.ident.steps_per_turn
         self.simulated = bool(self.ident.flags & msg.DeviceFlags.SIMULATED)
         n = len(plan.segments)
         self._t_start = np.full(n, np.nan)
         self._done = np.zeros(n, bool)
+        self._parts = np.zeros(n, np.int64)        # device commands of each segment (a long hold: several)
+        self._parts_done = np.zeros(n, np.int64)   # SEGMENT_DONE events seen per segment
+        self._to_send: list[NamedTuple] = []       # commands of segment _next not yet accepted
         self._next = 0                  # next plan segment to send
         self._oldest = 0                # oldest segment not yet done
         self._free = self.ident.queue_slots
@@ -100,8 +118,11 @@ class Runner:
         self._last_counter: int | None = None
         self.samples = 0
         self.samples_lost = 0
+        self.samples_discarded = 0
         self._segments_done = 0
-        self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 8000.0)
+        # heartbeat every 1/16 of the watchdog: seen through sample timestamps that lag the
+        # device clock, the gap the device sees stays within an eighth of the watchdog
+        self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
     # -- emit ------------------------------------------------------------------
@@ -128,19 +149,6 @@ class Runner:
         self._last_tx_dev_us = self._now_us
         return ack
 
-    def _device_command(self, seg: Segment) -> NamedTuple:
-        a, wire = seg.action, seg.index % WIRE_SEGMENTS
-        if isinstance(a, Move):
-            return msg.MoveTo(wire, round(a.target_turns * self.spt), max(1, round(a.rate_turns_per_s * self.spt)),
-                              max(1, round(a.accel_turns_per_s2 * self.spt)))
-        if isinstance(a, Hold):
-            return msg.Dwell(wire, round(a.duration_s * 1e6))
-        if isinstance(a, SetHeater):
-            return msg.SetHeater(wire, round(a.voltage_V * 1000))
-        if isinstance(a, SetSampling):
-            return msg.SetSampling(wire, round(a.period_s * 1e6))
-        raise TypeError(f"segment {seg.index} ({seg.kind}) has no device command")
-
     # -- main loop -----------------------------------------------------------
     def run(self) -> RunStop:
         wall0 = time.monotonic()
@@ -154,45 +162,65 @@ class Runner:
             identity=ident._asdict(), n_segments=len(plan.segments),
             estimated_duration_s=summary.duration_s, metadata=dict(plan.metadata))
         status, reason = "success", "all segments done"
+        installed_here = self.interrupts.install()
+        self.client.on_wait = self.interrupts.check
         try:
-            self._emit("on_start", start)
-            self._setup()
-            while self._oldest < len(plan.segments):
-                self._feed()
-                self._pump()
-            self._teardown()
-        except KeyboardInterrupt:
-            status, reason = "aborted", "interrupted by the user (Ctrl-C); motor stopped, heater off"
-            self._safe_stop()
-        except RunFailed as exc:
-            status, reason = "failed", str(exc)
-            self._safe_stop()
-        except DeviceError as exc:
-            status, reason = "failed", str(exc)
-            self._safe_stop()
-        except Exception as exc:  # a consumer or host bug: never leave the motor or heater running
-            status, reason = "failed", f"host error: {type(exc).__name__}: {exc}"
-            self._safe_stop()
-        try:
-            self._flush_rows()
-            self._close_open_segments()
-        except Exception as exc:
-            status, reason = "failed", f"{reason}; then host error: {type(exc).__name__}: {exc}"
-        stop = RunStop(status, reason, self._t(self._now_us), self.samples, self.samples_lost,
-                       self._segments_done, time.monotonic() - wall0)
-        for consumer in self.consumers:  # every consumer gets to close, even if another fails
             try:
-                consumer.on_stop(stop)
-            except Exception:
-                pass
-        return stop
+                self._emit("on_start", start)
+                self._setup()
+                while self._oldest < len(plan.segments):
+                    self._feed()
+                    self._pump()
+                self._teardown()
+                self.interrupts.stopping()
+                if self.interrupts.requested:  # asked to stop before the file closed: honour it
+                    status, reason = "aborted", "interrupted by the user after all segments were done"
+                    self._safe_stop()
+            except KeyboardInterrupt:
+                status, reason = "aborted", (f"interrupted by the user ({self._signal_name()}); "
+                                             "motor stopped, heater off")
+                self._safe_stop()
+            except StorageFull as exc:
+                status, reason = "failed", str(exc)
+                self._safe_stop()
+            except (RunFailed, DeviceError) as exc:
+                status, reason = "failed", str(exc)
+                self._safe_stop()
+            except Exception as exc:  # a consumer or host bug: never leave the motor or heater running
+                status, reason = "failed", f"host error: {type(exc).__name__}: {exc}"
+                self._safe_stop()
+            try:
+                self._flush_rows()
+                self._close_open_segments()
+            except StorageFull as exc:
+                if status != "aborted":
+                    status = "failed"
+                reason = str(exc) if status == "failed" and reason == "all segments done" else f"{reason}; then {exc}"
+            except Exception as exc:
+                status, reason = "failed", f"{reason}; then host error: {type(exc).__name__}: {exc}"
+            stop = RunStop(status, reason, self._t(self._now_us), self.samples, self.samples_lost,
+                           self._segments_done, time.monotonic() - wall0)
+            for consumer in self.consumers:  # every consumer gets to close, even if another fails
+                try:
+                    consumer.on_stop(stop)
+                except Exception:
+                    pass
+            return stop
+        finally:
+            self.client.on_wait = None
+            if installed_here:
+                self.interrupts.restore()
+
+    def _signal_name(self) -> str:
+        sig = self.interrupts.last_signal
+        return "SIGTERM" if sig == signal.SIGTERM else "Ctrl-C"
 
     def _setup(self) -> None:
         self._command(msg.Heartbeat())
         while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
             self._pump()
         if self.simulated and plan_load_known(self._load_g):
-            self._command(msg.SimSetLoad(round(self._load_g * 1000)))
+            self._command(msg.SimSetLoad(load_mg(self._load_g)))
         self._queued(msg.SetSampling(NO_SEGMENT, round(self.plan.sampling_period_s * 1e6)), "set sampling")
 
     def _teardown(self) -> None:
@@ -202,6 +230,7 @@ class Runner:
             self._handle(m)
 
     def _queued(self, message: NamedTuple, what: str) -> None:
+        self.interrupts.check()
         ack = self._command(message)
         while ack.status == msg.Status.QUEUE_FULL:
             self._pump()
@@ -211,9 +240,14 @@ class Runner:
         self._free = ack.queue_free
 
     def _safe_stop(self) -> None:
+        """STOP (always sent, retransmitted until acknowledged or the budget ends), then
+        what the device said meanwhile, unless a second signal asks to hurry."""
+        self.interrupts.stopping()
         try:
             self.client.stop()
             self._event("stop_sent", "STOP sent: motor halted, heater off, queue cleared")
+            if self.interrupts.hurry:
+                return
             for m in self.client.poll():
                 try:
                     self._handle(m)
@@ -221,18 +255,24 @@ class Runner:
                     self._event("fault", str(exc))
         except (DeviceError, KeyboardInterrupt):
             pass
+        except StorageFull:
+            pass  # the writer already said so; the device has been stopped
 
     def _feed(self) -> None:
         """Send plan segments while the device has room; handle a prompt when idle."""
         segs = self.plan.segments
         while self._next < len(segs) and self._free > 0:
+            self.interrupts.check()
             seg = segs[self._next]
             if isinstance(seg.action, Prompt):
                 if self._oldest < self._next:
                     return                 # the device must finish what it has first
                 self._do_prompt(seg)
                 continue
-            ack = self._command(self._device_command(seg))
+            if not self._to_send:          # a long hold is several DWELLs
+                self._to_send = device_commands(seg, self.spt)
+                self._parts[self._next] = len(self._to_send)
+            ack = self._command(self._to_send[0])
             if ack.status == msg.Status.QUEUE_FULL:
                 self._free = 0
                 return
@@ -243,7 +283,9 @@ class Runner:
                                 f"{msg.Status(ack.status).name.lower()}")
             self._free = ack.queue_free
             self._last_sent_wire = seg.index % WIRE_SEGMENTS
-            self._next += 1
+            self._to_send.pop(0)
+            if not self._to_send:
+                self._next += 1
 
     def _explain_bad_state(self) -> None:
         """A refusal for bad state means a latched fault: report the fault itself (its
@@ -260,11 +302,12 @@ class Runner:
         t_start = self._t(self._now_us)
         self._prompt_segment = seg.index
         self._event("prompt", a.text)
-        self.operator.answer(a.text, a.load_g)
+        with self.interrupts.immediate():  # a person may take minutes: Ctrl-C must not wait
+            self.operator.answer(a.text, a.load_g)
         if a.load_g is not None:
             self._load_g = float(a.load_g)
             if self.simulated:
-                self._command(msg.SimSetLoad(round(a.load_g * 1000)))
+                self._command(msg.SimSetLoad(load_mg(a.load_g)))
             self._event("load", f"load now {a.load_g:g} g ({a.load_g * G_N_PER_G:.4g} N)")
         self._prompt_segment = None
         self._finish_segment(seg.index, t_start, self._t(self._now_us), True)
@@ -272,6 +315,7 @@ class Runner:
 
     def _pump(self) -> None:
         """Read and handle what the device sent; heartbeat; detect silence."""
+        self.interrupts.check()
         messages = self.client.poll()
         wall = time.monotonic()
         if messages:
@@ -316,12 +360,17 @@ class Runner:
             raise RunFailed("the device rebooted during the run (power or reset?); data so far kept")
 
     def _on_sample(self, s: msg.Sample) -> None:
-        self._now_us = max(self._now_us, s.t_us)
         if self._last_counter is not None:
-            gap = (s.counter - self._last_counter - 1) & 0xFFFFFFFF
+            # signed distance on the wrapping u32 counter: <= 0 is a repeat or out of order
+            step = (s.counter - self._last_counter + COUNTER_MOD // 2) % COUNTER_MOD - COUNTER_MOD // 2
+            if step <= 0:
+                self.samples_discarded += 1
+                return
+            gap = step - 1
             if gap:
                 self.samples_lost += gap
                 self._event("sample_gap", f"{gap} sample(s) lost before counter {s.counter}", s.t_us)
+        self._now_us = max(self._now_us, s.t_us)
         self._last_counter = s.counter
         seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
         self._rows.append((s.t_us, s.step_position, s.position_raw, s.resistance_raw, s.adc_flags,
@@ -336,19 +385,29 @@ class Runner:
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._t_start):
                 self._finish_before(idx, e.t_us)
-                self._t_start[idx] = self._t(e.t_us)
+                if np.isnan(self._t_start[idx]):  # the first of its device commands
+                    self._t_start[idx] = self._t(e.t_us)
         elif kind == msg.EventKind.SEGMENT_DONE:
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._done) and not self._done[idx]:
                 self._finish_before(idx, e.t_us)
-                start = self._t_start[idx]
-                self._finish_segment(idx, self._t(e.t_us) if np.isnan(start) else float(start), self._t(e.t_us), True)
+                self._parts_done[idx] += 1
+                if idx < self._next and self._parts_done[idx] >= self._parts[idx]:  # its last command
+                    start = self._t_start[idx]
+                    t_end = self._t(e.t_us)
+                    self._finish_segment(idx, t_end if np.isnan(start) else float(start), t_end, True)
         elif kind == msg.EventKind.FAULT:
             raise RunFailed(f"device fault: {msg.Fault(e.code).name.lower()} (segment {self._unwrap(e.segment)})")
         elif kind == msg.EventKind.QUEUE_EMPTY:
-            if (0 < self._next < len(self.plan.segments)
-                    and not isinstance(self.plan.segments[self._next].action, Prompt)):
-                self._event("queue_underrun", "device ran out of queued commands before the plan ended", e.t_us)
+            # An underrun: the device ran dry after a plan segment that is followed by more
+            # device work. Not one: set-up and tear-down commands (NO_SEGMENT; over a real
+            # link their QUEUE_EMPTY arrives after the first plan segment was sent) and the
+            # wait before an operator prompt.
+            idx = self._unwrap(e.segment)
+            segs = self.plan.segments
+            if 0 <= idx < len(segs) - 1 and not isinstance(segs[idx + 1].action, Prompt):
+                self._event("queue_underrun", f"device ran out of queued commands after segment {idx} "
+                                              "before the plan ended", e.t_us)
         else:
             name = msg.EventKind(kind).name.lower() if kind in msg.EventKind._value2member_map_ else str(kind)
             self._event(name, f"segment {self._unwrap(e.segment)} code {e.code} value {e.value}", e.t_us)

@@ -59,11 +59,16 @@ _NUMBERS = {"heater_supply_V": (0.0, 100.0), "lead_ms": (1.0, 60000.0), "host_go
             "realtime_factor": (0.0, 1000.0), "cs5513_conversion_us": (1000.0, 1000000.0)}
 
 
-def simavr_settings(bench: BenchConfig) -> SimavrSettings:
+#: The project's own firmware folder: the only one built unless the user trusts another.
+PROJECT_FIRMWARE_DIR = Path(__file__).resolve().parents[3] / "firmware"
+
+
+def simavr_settings(bench: BenchConfig, *, trust_firmware_dir: bool = False) -> SimavrSettings:
     """The bench file's ``simavr:`` section; raise BenchConfigError naming file and key.
 
     ``firmware_dir`` is relative to the bench file's directory (default: the
-    checkout's ``firmware/``).
+    checkout's ``firmware/``). Because the launcher runs ``make`` in it, any other
+    folder is refused unless ``trust_firmware_dir`` (``--trust-firmware-dir``).
     """
     where = f"{bench.path or '<bench>'}: simavr"
     data = dict(bench.simavr)
@@ -74,11 +79,16 @@ def simavr_settings(bench: BenchConfig) -> SimavrSettings:
     base = Path(bench.path).resolve().parent if bench.path else Path.cwd()
     fw = data.pop("firmware_dir", None)
     if fw is None:
-        firmware_dir = Path(__file__).resolve().parents[3] / "firmware"
-    elif isinstance(fw, str):
+        firmware_dir = PROJECT_FIRMWARE_DIR
+    elif isinstance(fw, str) and fw.strip() and "\x00" not in fw:
         firmware_dir = (base / fw).resolve()
     else:
         raise BenchConfigError(f"{where}: 'firmware_dir' must be a path, got {fw!r}")
+    if firmware_dir != PROJECT_FIRMWARE_DIR.resolve() and not trust_firmware_dir:
+        raise BenchConfigError(
+            f"{where}: 'firmware_dir' {firmware_dir} is not this project's firmware folder "
+            f"({PROJECT_FIRMWARE_DIR}); the simavr bench runs `make` there, so another folder is used only "
+            "with --trust-firmware-dir")
     build = data.pop("build", True)
     if not isinstance(build, bool):
         raise BenchConfigError(f"{where}: 'build' must be true or false, got {build!r}")

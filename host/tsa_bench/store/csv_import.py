@@ -20,7 +20,10 @@ Contract of :func:`import_csv`:
   degC); a unit of another dimension is an error naming the allowed units. Any other
   extra column keeps the unit it came with, which must be given;
 * every cell must parse: an empty or ``nan`` cell is NaN (not measured) in float
-  columns, but an error in ``t`` and in integer columns; ``t`` must strictly increase;
+  columns, but an error in ``t`` and in integer columns; integers must fit their
+  column's type (``position_raw`` is int16: 40000 is refused, never wrapped); no value
+  may be infinite or larger than the run reader accepts (1e15 in magnitude);
+  ``t`` must strictly increase;
 * contract columns not given are filled: float columns NaN (not measured / undeclared),
   ``segment`` -1 (no segments), ``motor_moving`` 1 where ``turns`` differs from the
   previous row (0 without turns), ``counter`` the row number 0, 1, ... (no device
@@ -50,13 +53,16 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from tsa_bench.documents import DocumentError, read_text_file
 from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
 from tsa_bench.store.hdf5 import CHUNK, RunWriter
+from tsa_bench.store.reader import MAX_ABS_VALUE
 from tsa_bench.units import CHANNELS, UnitError, channel_conversion
 
 _HEADER_UNIT = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 _EXTRA_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
 MAX_ERRORS = 20
+MAX_CSV_BYTES = 1 << 30
 
 
 class CsvImportError(ValueError):
@@ -102,9 +108,9 @@ def _read_header(path: Path) -> tuple[list[str], int, str, list[tuple[int, list[
     none of them but spaces is whitespace-separated (runs of blanks split cells).
     """
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CsvImportError(f"{path}: cannot read ({exc})") from None
+        text = read_text_file(path, "CSV file", MAX_CSV_BYTES)
+    except DocumentError as exc:
+        raise CsvImportError(str(exc)) from None
     lines = text.splitlines()
     for i, line in enumerate(lines):
         if line.strip() and not line.lstrip().startswith("#"):
@@ -119,8 +125,13 @@ def _read_header(path: Path) -> tuple[list[str], int, str, list[tuple[int, list[
         body = split[1:]
     else:
         reader = csv.reader(lines[i:], delimiter=delim)
-        header = [c.strip() for c in next(reader)]
-        body = list(enumerate(reader, start=i + 2))
+        body = []
+        try:
+            header = [c.strip() for c in next(reader)]
+            for cells in reader:
+                body.append((i + reader.line_num, cells))
+        except csv.Error as exc:  # e.g. an unclosed quote swallowing the rest of the file
+            raise CsvImportError(f"{path}:{i + reader.line_num}: not valid CSV ({exc})") from None
     rows = []
     for n, cells in body:
         if not cells or (len(cells) == 1 and not cells[0].strip()) or cells[0].lstrip().startswith("#"):
@@ -193,11 +204,18 @@ def _parse(path: Path, header: list[str], rows: list, cols: dict[str, int],
             except ValueError:
                 errors.append(f"{where}: cannot parse '{cell}' as a number")
                 continue
-            integer = target in SAMPLE_COLUMNS and SAMPLE_COLUMNS[target][0][0] in "iu"
-            if not math.isfinite(v) and (target == "t" or integer):
-                errors.append(f"{where}: {'empty' if not cell else repr(cell)} where a value is required")
+            dtype = SAMPLE_COLUMNS[target][0] if target in SAMPLE_COLUMNS else "f8"
+            integer = dtype[0] in "iu"
+            if not math.isfinite(v) and (target == "t" or integer or not math.isnan(v)):
+                errors.append(f"{where}: {'empty' if not cell else repr(cell)} where a finite value is required")
             elif integer and v != int(v):
                 errors.append(f"{where}: '{cell}' is not a whole number")
+            elif integer and not np.iinfo(dtype).min <= v <= np.iinfo(dtype).max:
+                info = np.iinfo(dtype)
+                errors.append(f"{where}: {cell} does not fit {target} ({info.min}..{info.max})")
+            elif abs(v * conversions.get(target, (1.0, 0.0))[0] + conversions.get(target, (1.0, 0.0))[1]) \
+                    > MAX_ABS_VALUE:
+                errors.append(f"{where}: {cell} is too large (at most {MAX_ABS_VALUE:g} in magnitude)")
             data[target][r] = v
         if len(errors) >= MAX_ERRORS:
             break

@@ -13,6 +13,17 @@ no data by more than that interval. ``on_stop`` writes the rest, the exit status
 and closes the file. The low-level h5py API is used for appends because the
 high-level slicing costs ~1 ms per append of 13 columns, which a 12,000-segment
 lifetime run cannot afford at every segment end.
+
+Storage (:mod:`tsa_bench.store.space`): before creating the file and before every
+flush the writer checks that the write fits with room to spare for closing the file;
+when it does not, it raises :class:`~tsa_bench.store.space.StorageFull` ("disk full:
+...") and the runner ends the run "failed"; the writer keeps what it could not write
+in memory, and ``on_stop`` stores it if it still fits (else says how many samples were
+not stored), writes the status and closes the file, which then reads like any other.
+Every flush writes all columns of its rows or none, so columns never differ in length.
+If the HDF5 library itself fails a write (another program filled the disk within
+milliseconds of the check), the file cannot be closed any more: :attr:`RunWriter.broken`
+says so and the writer leaves the file alone (the live sidecar keeps the samples).
 """
 
 from __future__ import annotations
@@ -30,6 +41,10 @@ import tsa_bench
 from tsa_bench.runner.documents import (
     SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord,
 )
+from tsa_bench.store.space import HEADER_BYTES, StorageFull, ensure_room, flush_bytes
+
+#: errno values that mean "no room": ENOSPC, EFBIG, EDQUOT
+NO_ROOM_ERRNOS = {28, 27, 122}
 
 FORMAT = "tsa-bench/run"
 FORMAT_VERSION = "1.0"
@@ -81,12 +96,21 @@ class RunWriter:
         self._columns: dict[str, _Appender] = {}
         self._segment_rows: _Appender | None = None
         self._event_rows: _Appender | None = None
+        self.full: str | None = None    # why nothing more is written ("disk full: ...")
+        self.broken: str | None = None  # the HDF5 library failed a write: the file cannot be closed
+        self.samples_not_stored = 0
 
     def on_start(self, start: RunStart) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        ensure_room(self.path, HEADER_BYTES, "creating the run file")
         # Default (earliest) format on purpose: with libver="latest" the superblock marks the
         # file open-for-write, and a killed run would then not open without h5clear.
-        f = self._f = h5py.File(self.path, "w")
+        try:
+            f = self._f = h5py.File(self.path, "w")
+        except OSError as exc:
+            if exc.errno in NO_ROOM_ERRNOS:
+                raise StorageFull(f"disk full: cannot create {self.path}: {exc.strerror}") from None
+            raise
         a = f.attrs
         a["format"] = FORMAT
         a["format_version"] = FORMAT_VERSION
@@ -135,13 +159,42 @@ class RunWriter:
         self._maybe_flush()
 
     def on_stop(self, stop: RunStop) -> None:
-        if self._f is None:
+        if self._f is None or self.broken:
             return
-        self.flush()
+        status, reason = stop.exit_status, stop.reason
+        if not self.full:
+            try:
+                self.flush()
+            except StorageFull:
+                if self.broken:
+                    return
+        if self.full:
+            if status == "success":  # the disk filled while the run closed: its data is incomplete
+                status, reason = "failed", self.full
+            elif "disk full" not in reason:
+                reason += f"; then {self.full}"
+            try:
+                self._write_pending()
+            except StorageFull:
+                if self.broken:
+                    return
+                # no room for the samples: keep the segments and events (the STOP among them)
+                self.samples_not_stored = sum(len(b) for b in self._pending)
+                self._pending = []
+                reason += f"; {self.samples_not_stored} samples received after that were not stored"
+                try:
+                    self._write_pending()
+                except StorageFull:
+                    if self.broken:
+                        return
+                    self._segments, self._events = [], []
+                    reason += " (nor the last segments and events)"
         a = self._f.attrs
-        a["exit_status"] = stop.exit_status
-        a["reason"] = stop.reason
+        a["exit_status"] = status
+        a["reason"] = reason
         a["samples_lost"] = stop.samples_lost
+        if self.samples_not_stored:
+            a["samples_not_stored"] = self.samples_not_stored
         a["duration_s"] = stop.t_end
         a["wall_time_s"] = stop.wall_time_s
         self._f.close()
@@ -153,22 +206,43 @@ class RunWriter:
             self.flush()
 
     def flush(self) -> None:
-        """Write everything buffered and flush the file to the operating system."""
-        f = self._f
-        if f is None:
+        """Write everything buffered and flush the file to the operating system.
+
+        Raises StorageFull (once) when it does not fit; after that it writes nothing more.
+        """
+        if self._f is None or self.full or self.broken:
             return
-        if self._pending:
-            blocks, self._pending = self._pending, []
-            for name, column in self._columns.items():
-                column.append(blocks[0].columns[name] if len(blocks) == 1
-                              else np.concatenate([b.columns[name] for b in blocks]))
-        if self._segments:
-            rows, self._segments = self._segments, []
-            self._segment_rows.append(np.array(rows, dtype=SEGMENT_DTYPE))
-        if self._events:
-            rows, self._events = self._events, []
-            self._event_rows.append(np.array(rows, dtype=EVENT_DTYPE))
-        f.flush()
+        try:
+            self._write_pending()
+        except StorageFull as exc:
+            self.full = str(exc)
+            raise
         self._segment_flush_due = False
         self.flushes += 1
         self._last_flush = time.monotonic()
+
+    def _write_pending(self) -> None:
+        """Check room, then append every buffered row (all columns) and flush; StorageFull if no room."""
+        f = self._f
+        assert f is not None
+        rows = sum(len(b) for b in self._pending)
+        ensure_room(self.path, flush_bytes(rows, len(self._segments), len(self._events)),
+                    f"storing {rows} more samples")
+        columns = {name: (self._pending[0].columns[name] if len(self._pending) == 1
+                          else np.concatenate([b.columns[name] for b in self._pending]))
+                   for name in self._columns} if self._pending else {}
+        segments = np.array(self._segments, dtype=SEGMENT_DTYPE) if self._segments else None
+        events = np.array(self._events, dtype=EVENT_DTYPE) if self._events else None
+        try:
+            for name, column in self._columns.items():
+                if columns:
+                    column.append(columns[name])
+            if segments is not None:
+                self._segment_rows.append(segments)
+            if events is not None:
+                self._event_rows.append(events)
+            f.flush()
+        except (OSError, RuntimeError) as exc:
+            self.broken = f"the HDF5 library failed to write {self.path} ({exc}); the file cannot be closed"
+            raise StorageFull(f"disk full or write error: {self.broken}") from None
+        self._pending, self._segments, self._events = [], [], []

@@ -69,8 +69,11 @@ def inspect_run(path: str | Path) -> RunInfo:
             mean=float(x[ok].mean()) if ok.any() else float("nan"))
     t = run.t_s
     gaps = 0
-    if "counter" in run.samples and len(run) > 1:
-        gaps = int(np.clip(np.diff(run.samples["counter"].astype(np.int64)) - 1, 0, None).sum())
+    counter = run.samples.get("counter")
+    if counter is not None and len(run) > 1:
+        c = counter.astype(float)
+        c = c[np.isfinite(c)]  # a foreign file's float counter may hold NaN
+        gaps = int(np.clip(np.diff(c) - 1, 0, None).sum()) if len(c) > 1 else 0
     segs, events = run.segments, run.events
     completed = int(segs["completed"].sum()) if segs is not None and "completed" in (segs.dtype.names or ()) else 0
     attrs = dict(run.attrs)

@@ -31,6 +31,7 @@ import datetime as dt
 import json
 import os
 import socket
+import stat
 import struct
 import sys
 import time
@@ -39,6 +40,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
+from tsa_bench.documents import DocumentError, parse_json
 from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 MAGIC = b"TSALIVE1"
@@ -48,6 +50,7 @@ RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("segment", "<i4"), (
                    ("heater_voltage", "<f8"), ("load", "<f8")])
 END_KINDS = {"success": 1, "aborted": 2, "failed": 3}
 END_NAMES = {v: k for k, v in END_KINDS.items()}
+MAX_HEADER_BYTES = 64 * 1024
 
 
 def sidecar_path(run_path: str | Path) -> Path:
@@ -152,24 +155,49 @@ class LiveTail:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self._f = open(self.path, "rb")
-        head = self._f.read(12)
-        if len(head) < 12 or head[:8] != MAGIC:
-            self._f.close()
-            raise LiveFormatError(f"{self.path}: not a tsa-bench live sidecar (bad magic)")
-        (n,) = struct.unpack("<I", head[8:])
+        # never block on a FIFO or read a device: regular files only (FileNotFoundError passes)
+        fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise LiveFormatError(f"{self.path}: not a regular file, so not a live sidecar")
+        self._f = os.fdopen(fd, "rb")
         try:
-            self.header: dict[str, Any] = json.loads(self._f.read(n).decode())
-        except ValueError as exc:
+            self.header = self._read_header()
+        except LiveFormatError:
             self._f.close()
-            raise LiveFormatError(f"{self.path}: unreadable sidecar header ({exc})") from None
-        self.dtype = np.dtype([tuple(d) for d in self.header["record_dtype"]])
-        if self.dtype.itemsize != self.header["record_size"]:
-            self._f.close()
-            raise LiveFormatError(f"{self.path}: record size {self.header['record_size']} does not match its dtype")
-        self._offset = 12 + n
+            raise
+        self.dtype = RECORD
+        self._offset = 12 + self._header_len
         self.end_kind: int | None = None
         self.end_record: np.void | None = None
+
+    def _read_header(self) -> dict[str, Any]:
+        head = self._f.read(12)
+        if len(head) < 12 or head[:8] != MAGIC:
+            raise LiveFormatError(f"{self.path}: not a tsa-bench live sidecar (bad magic)")
+        (n,) = struct.unpack("<I", head[8:])
+        if n > MAX_HEADER_BYTES:
+            raise LiveFormatError(f"{self.path}: sidecar header of {n:,} bytes (at most {MAX_HEADER_BYTES:,})")
+        raw = self._f.read(n)
+        try:
+            header = parse_json(raw.decode("utf-8"), str(self.path)) if len(raw) == n else None
+        except (UnicodeDecodeError, DocumentError) as exc:
+            raise LiveFormatError(f"{self.path}: unreadable sidecar header ({exc})") from None
+        if not isinstance(header, dict):
+            raise LiveFormatError(f"{self.path}: unreadable sidecar header (truncated or not a JSON object)")
+        layout = [list(d) for d in RECORD.descr]
+        if header.get("version") != VERSION or header.get("record_dtype") != layout \
+                or header.get("record_size") != RECORD.itemsize:
+            raise LiveFormatError(f"{self.path}: sidecar version {header.get('version')!r} with another record "
+                                  f"layout; this tsa-bench reads version {VERSION}")
+        for key, kind in (("n_segments", int), ("pid", int), ("estimated_duration_s", (int, float))):
+            if key in header and (isinstance(header[key], bool) or not isinstance(header[key], kind)):
+                raise LiveFormatError(f"{self.path}: sidecar header field {key!r} is {header[key]!r}")
+        for key in ("plan_name", "host", "run_file", "started"):
+            if key in header and not isinstance(header[key], str):
+                header[key] = str(header[key])
+        self._header_len = n
+        return header
 
     @property
     def ended(self) -> str | None:
@@ -196,13 +224,14 @@ class LiveTail:
 
     def writer_alive(self) -> bool | None:
         """True/False when the writer ran on this host (by its pid), None when unknown."""
-        if self.header.get("host") != socket.gethostname():
+        pid = self.header.get("pid")
+        if self.header.get("host") != socket.gethostname() or not isinstance(pid, int) or not 0 < pid < 2**31:
             return None
         try:
-            os.kill(int(self.header["pid"]), 0)
+            os.kill(pid, 0)
         except ProcessLookupError:
             return False
-        except (PermissionError, OSError, ValueError, KeyError):
+        except OSError:
             return True
         return True
 

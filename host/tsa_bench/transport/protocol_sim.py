@@ -12,8 +12,8 @@ Contract: ``open()`` builds a fresh :class:`SimDevice` (reachable as ``.device``
 lets it announce BOOT, like the DTR reset of opening a real Mega. ``write()`` hands the
 bytes to the device at once (replies are buffered immediately). ``read(size)`` returns
 buffered output; with nothing buffered it advances virtual time by at most one
-quantum, ``min(watchdog_s / 4, 0.5)`` s, per call - stopping early at the first
-non-SAMPLE frame or ``size`` bytes - so a host that heartbeats every ``watchdog_s / 4``
+quantum, ``min(watchdog_s / 8, 0.5)`` s, per call - stopping early at the first
+non-SAMPLE frame or ``size`` bytes - so a host that heartbeats every ``watchdog_s / 8``
 of device time never trips the watchdog; it may return ``b""`` when the device said
 nothing during that quantum (also without a timeout). ``in_waiting`` advances the same
 way without ever sleeping. With ``speed`` virtual time never runs ahead of wall time x
@@ -51,7 +51,9 @@ class SimUrl:
     seed: int | None = None
 
     def bench(self) -> BenchConfig:
-        return load_bench(self.bench_path)
+        """The bench file (validated in full). Its ``port`` and ``simavr.firmware_dir`` are
+        not used by the simulated device, so the policies on them do not apply here."""
+        return load_bench(self.bench_path, allow_url=True, trust_firmware_dir=True)
 
 
 def parse_sim_url(url: str) -> SimUrl:
@@ -93,8 +95,8 @@ def parse_sim_url(url: str) -> SimUrl:
 
 
 def quantum_s(device: SimDevice) -> float:
-    """Most virtual time one read may run: ``min(watchdog_s / 4, 0.5)`` s."""
-    return min(device.limits.watchdog_s / 4.0, 0.5)
+    """Most virtual time one read may run: ``min(watchdog_s / 8, 0.5)`` s (the host's heartbeat period)."""
+    return min(device.limits.watchdog_s / 8.0, 0.5)
 
 
 class Pacer:

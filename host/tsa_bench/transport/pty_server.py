@@ -97,7 +97,7 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
 
 
 def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
-    """Whether virtual time may advance: not more than half a watchdog period past the
+    """Whether virtual time may advance: not more than an eighth of a watchdog period past the
     device time of the host's last frame, unless the host has been silent for two
     watchdog periods of wall time (gone, not slow: then the watchdog must fire).
 
@@ -109,7 +109,7 @@ def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
     watchdog_s = device.limits.watchdog_s
     if time.monotonic() - last_wall > 2 * watchdog_s:
         return True
-    return device.now_s < last_dev_s + watchdog_s / 2
+    return device.now_s < last_dev_s + watchdog_s / 8
 
 
 def _unread(slave: int) -> int:

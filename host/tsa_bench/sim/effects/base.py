@@ -70,9 +70,9 @@ class PlantState:
     resistance_ohm: float = 5.0
 
 
-def param(default: float, units: str, doc: str, minimum: float | None = None) -> Any:
-    """A ``Params`` field with its units, one-line doc and optional lower bound."""
-    return field(default=default, metadata={"units": units, "doc": doc, "minimum": minimum})
+def param(default: float, units: str, doc: str, minimum: float | None = None, maximum: float | None = None) -> Any:
+    """A ``Params`` field with its units, one-line doc and optional bounds."""
+    return field(default=default, metadata={"units": units, "doc": doc, "minimum": minimum, "maximum": maximum})
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ def canonical_order(names: list[str] | tuple[str, ...] | None = None) -> list[st
 
 
 def number_param(params: Mapping[str, Any], key: str, where: str, default: float | None = None,
-                 minimum: float | None = None) -> float:
+                 minimum: float | None = None, maximum: float | None = None) -> float:
     """Read a numeric parameter; raise ValueError naming ``where`` and ``key``."""
     if key not in params:
         if default is None:
@@ -148,6 +148,8 @@ def number_param(params: Mapping[str, Any], key: str, where: str, default: float
         raise ValueError(f"{where}: '{key}' must be a number, got {value!r}")
     if minimum is not None and value < minimum:
         raise ValueError(f"{where}: '{key}' must be >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise ValueError(f"{where}: '{key}' must be <= {maximum}, got {value}")
     return float(value)
 
 
@@ -184,7 +186,8 @@ def parse_effect_config(name: str, cfg: Any) -> tuple[bool, Any]:
                     raise ValueError(f"{where}: '{key}' must be true or false, got {cfg[key]!r}")
                 values[key] = cfg[key]
             else:
-                values[key] = number_param(cfg, key, where, minimum=f.metadata.get("minimum"))
+                values[key] = number_param(cfg, key, where, minimum=f.metadata.get("minimum"),
+                                           maximum=f.metadata.get("maximum"))
     return enabled, cls.Params(**values)
 
 

@@ -61,7 +61,7 @@ class ResistanceHysteresis(Effect):
         beta: float = param(1.5, "1", "beta (> 1 keeps thresholds positive at rest)", minimum=1.0)
         rate_weight: float = param(1.0, "(s/mm)^eps", "lambda: weight of the rate", minimum=0.0)
         epsilon: float = param(1.0, "1", "eps: exponent of the rate", minimum=0.0)
-        operators: float = param(8, "1", "number N of play operators", minimum=1)
+        operators: float = param(8, "1", "number N of play operators", minimum=1, maximum=1000)
 
     def reset(self) -> None:
         n = int(self.params.operators)

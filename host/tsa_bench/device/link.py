@@ -1,0 +1,152 @@
+"""Link layer for device frames: order them by their header sequence number.
+
+The device numbers every frame it sends (``seq``, u16, wrapping; protocol/README.md).
+A serial line can lose, corrupt (the CRC drops it: a loss), duplicate or reorder
+frames. Contract of :class:`FrameSequencer`: frames handed to :meth:`push` come out
+in sequence order, each at most once:
+
+* a frame whose number comes next is released at once, with any held frames that
+  follow it;
+* a frame from ahead of a gap is held until the gap fills (a swapped pair is restored),
+  until ``depth`` frames are held or the oldest has waited ``hold_s``; then the gap is
+  given up as lost and the held frames are released;
+* a frame whose number was released recently is a duplicate and is dropped; one from
+  behind that was not (a gap given up before, or older than the first frame of the
+  session) is late: it is returned apart (:attr:`late`) for the caller to judge (an
+  ACK is still useful; a sample is not, it would be out of order);
+* a BOOT frame (the device restarted and counts from 0 again) or a number far outside
+  the window restarts the count.
+
+Counters in :attr:`stats` say what happened. Nothing here sleeps; :meth:`push` with no
+frames releases what has waited long enough.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from tsa_bench.protocol import Frame, msg
+
+SEQ_MOD = 1 << 16
+#: Numbers ahead of the expected one that are held as a reordering; farther ahead is a restart.
+WINDOW = 1024
+#: Numbers remembered as released (for telling duplicates from late frames).
+REMEMBER = 4096
+
+
+@dataclass
+class LinkStats:
+    """What the sequencer saw: frames ``released`` in order, ``duplicates`` and ``late``
+    frames dropped, ``restored`` frames that arrived out of order and were put back,
+    ``lost`` frame numbers given up, and ``restarts`` of the count."""
+
+    released: int = 0
+    duplicates: int = 0
+    late: int = 0
+    restored: int = 0
+    lost: int = 0
+    restarts: int = 0
+
+
+class FrameSequencer:
+    """Releases device frames in sequence order, each once (see the module contract)."""
+
+    def __init__(self, depth: int = 4, hold_s: float = 0.05, clock: Callable[[], float] = time.monotonic) -> None:
+        self.depth = depth
+        self.hold_s = hold_s
+        self.clock = clock
+        self.stats = LinkStats()
+        self.late: list[Frame] = []
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the count (a new session): the next frame sets it."""
+        self._expected: int | None = None
+        self._held: dict[int, tuple[Frame, float]] = {}
+        self._released: set[int] = set()
+        self._released_order: deque[int] = deque()
+
+    def _ahead(self, seq: int) -> int:
+        assert self._expected is not None
+        return (seq - self._expected) % SEQ_MOD
+
+    def _release_run(self, out: list[Frame], restored: bool) -> None:
+        """Release held frames that now follow on (``restored``: a gap was filled)."""
+        while self._expected in self._held:
+            frame, _ = self._held.pop(self._expected)
+            self.stats.restored += restored
+            self._emit(frame, out)
+
+    def _emit(self, frame: Frame, out: list[Frame]) -> None:
+        out.append(frame)
+        self.stats.released += 1
+        self._expected = (frame.seq + 1) % SEQ_MOD
+        self._remember(frame.seq)
+
+    def _remember(self, seq: int) -> None:
+        self._released.add(seq)
+        self._released_order.append(seq)
+        if len(self._released_order) > REMEMBER:
+            self._released.discard(self._released_order.popleft())
+
+    def _give_up_gap(self, out: list[Frame]) -> None:
+        """Declare lost the numbers before the lowest held frame, release from there."""
+        lowest = min(self._held, key=self._ahead)
+        gap = self._ahead(lowest)
+        self.stats.lost += gap
+        self._expected = lowest
+        self._release_run(out, restored=False)
+
+    def _restart(self, frame: Frame, out: list[Frame]) -> None:
+        for seq in sorted(self._held, key=self._ahead):  # what was held is older: release it first
+            out.append(self._held[seq][0])
+            self.stats.released += 1
+        self._held.clear()
+        self._released.clear()
+        self._released_order.clear()
+        self.stats.restarts += 1
+        self._emit(frame, out)
+
+    def push(self, frames: list[Frame]) -> list[Frame]:
+        """Frames now in order (possibly none); late ones go to :attr:`late`."""
+        out: list[Frame] = []
+        for frame in frames:
+            seq = frame.seq
+            if self._expected is None:
+                self._emit(frame, out)
+                continue
+            if isinstance(frame.message, msg.Boot):
+                self._restart(frame, out)
+                continue
+            ahead = self._ahead(seq)
+            if ahead == 0:
+                self._emit(frame, out)
+                self._release_run(out, restored=True)
+            elif ahead < WINDOW:
+                if seq in self._held:
+                    self.stats.duplicates += 1
+                else:
+                    self._held[seq] = (frame, self.clock())
+            elif ahead >= SEQ_MOD - SEQ_MOD // 2:  # behind: released already, or late
+                if seq in self._released:
+                    self.stats.duplicates += 1
+                else:
+                    self._remember(seq)  # a second copy of it is a duplicate
+                    self.stats.late += 1
+                    self.late.append(frame)
+            else:
+                self._restart(frame, out)
+            while len(self._held) >= self.depth:
+                self._give_up_gap(out)
+        now = self.clock()
+        while self._held and now - min(t for _, t in self._held.values()) >= self.hold_s:
+            self._give_up_gap(out)
+        return out
+
+    def take_late(self) -> list[Frame]:
+        """Late frames seen since the last call."""
+        late, self.late = self.late, []
+        return late

@@ -1,0 +1,29 @@
+"""Plan segments as device commands: long holds as several DWELLs; what cannot be sent."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.runner.helpers import BENCH, plan_from_text
+from tsa_bench.plan import Limits, load_plan_text
+from tsa_bench.runner.commands import MAX_DWELL_US, device_commands, dwell_chunks_us, plan_problems
+
+
+@pytest.mark.parametrize("hold_s", [0.001, 4294.967295, 4294.967296, 10_000, 604_800])
+def test_holds_become_dwells_that_add_up_exactly(hold_s):
+    chunks = dwell_chunks_us(hold_s)
+    assert sum(chunks) == round(hold_s * 1e6) and all(0 < c <= MAX_DWELL_US for c in chunks)
+    assert len(chunks) == -(-round(hold_s * 1e6) // MAX_DWELL_US)
+    assert max(chunks) - min(chunks) <= 1
+
+
+def test_plan_problems_names_what_does_not_fit_the_wire():
+    plan = plan_from_text("name: t\nsteps:\n  - hold: {duration_s: 10000}\n")
+    assert [len(device_commands(s, 3200)) for s in plan.segments] == [3]
+    assert plan_problems(plan, BENCH.steps_per_turn) == []
+    free = Limits()  # a bench without limits: only the wire bounds the values
+    plan = load_plan_text("name: t\nsteps:\n  - move_to: {turns: 1e9, rate_turns_per_s: 1, accel_turns_per_s2: 1}\n"
+                          "  - heater: {voltage_V: 70}\n", free, "t.yaml")
+    problems = plan_problems(plan, 3200)
+    assert len(problems) == 2 and problems[0].startswith("t.yaml:3: move") and "MoveTo" in problems[0]
+    assert "SetHeater" in problems[1]
