@@ -6,10 +6,9 @@ own tests in test_sim_effects_*.py."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import math
 import time
+from pathlib import Path
 
 import pytest
 from hypothesis import given
