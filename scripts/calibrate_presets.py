@@ -109,7 +109,8 @@ def main() -> int:
         by = {}
         for r in rows.values():
             if r.verdict in ("agrees", "disagrees"):
-                by.setdefault(r.role, {"agrees": 0, "disagrees": 0})[r.verdict] += 1
+                key = r.role if r.role != "held-out" else f"held-out {'quantities' if r.kind == 'quantity' else 'coefficients'}"
+                by.setdefault(key, {"agrees": 0, "disagrees": 0})[r.verdict] += 1
         print(f"{name}: " + "; ".join(f"{role}: {c['agrees']} agree, {c['disagrees']} disagree"
                                      for role, c in sorted(by.items())))
     print(f"({time.perf_counter() - t0:.0f} s)")
