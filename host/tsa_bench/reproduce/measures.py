@@ -31,7 +31,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 
 UNIT_OF_INPUT = {"sweep": "turn", "heat": "V", "scheme": "ohm"}
 
