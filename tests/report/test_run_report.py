@@ -44,7 +44,8 @@ def test_every_shipped_protocol_gets_its_thesis_figures(protocol_runs, tmp_path)
         assert "timeseries" in kinds and EXPECTED[name] <= kinds, (name, kinds)
         assert not (FORBIDDEN.get(name, set()) & kinds), (name, kinds)
         assert set(rep.skipped) | kinds == {"timeseries", "stiffness", "loops", "voltage", "resistance_length",
-                                            "transient", "drift"}
+                                            "transient", "drift", "extras", "extras_xy"}
+        assert not {"extras", "extras_xy"} & kinds  # protocol runs hold only contract columns
         for fig in rep.figures:
             _png_ok(fig.path)
         page = rep.index.read_text()

@@ -98,7 +98,9 @@ def test_load_dependence_softens_the_strings_as_they_contract():
     off = cfg()
     # the relative stretch under +400 g is the same untwisted, larger when contracted
     assert stretch(on, 0) == pytest.approx(stretch(off, 0), abs=1e-12)
-    assert stretch(on, 45) > stretch(off, 45) + 0.002
+    # 40 turns: well contracted for both loads with the calibrated sim.yaml (L0 233 mm); deeper,
+    # the light load's own softening catches up with the heavy one's
+    assert stretch(on, 40) > stretch(off, 40) + 0.002
 
 
 def test_string_compliance_off_length_ignores_load():

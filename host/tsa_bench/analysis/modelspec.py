@@ -85,19 +85,21 @@ BASE_SPECS: dict[str, ParamSpec] = {s.key: s for s in (
 
 
 def enabled_effects(plant_cfg: Mapping[str, Any]) -> list[str]:
-    """Effects the plant config switches on: library effects (omitted = on) and named forms."""
+    """Effects the plant config switches on: library effects (omitted ones take ``default_enabled``)
+    and alternative forms (only when named)."""
     items = plant_cfg.get("effects") or {}
     out = []
     for name in list(EFFECTS) + list(FORMS):
         if name in FORMS and name not in items:
             continue
         cfg = items.get(name, {})
+        default = effect_class(name).default_enabled
         if isinstance(cfg, bool):
             on = cfg
         elif cfg is None:
-            on = True
+            on = default
         else:
-            on = bool(cfg.get("enabled", True))
+            on = bool(cfg.get("enabled", default))
         if on:
             out.append(name)
     return out

@@ -4,6 +4,7 @@
 - :mod:`.data`: info, report, watch, import, export
 - :mod:`.models`: fit, predict, manipulator
 - :mod:`.diagnose`: diagnose
+- :mod:`.reproduce`: reproduce
 
 A command module parses options, calls the library and prints; it holds no logic of its
 own and imports the library inside the command, so that ``--help`` and ``--version``
@@ -35,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "predict": "models:predict_cmd",
     "manipulator": "models:manipulator_cmd",
     "diagnose": "diagnose:diagnose",
+    "reproduce": "reproduce:reproduce",
 }
 
 

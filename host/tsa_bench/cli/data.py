@@ -94,16 +94,23 @@ def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
 @click.command("import")
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--map", "maps", multiple=True,
-              help="Contract column = CSV column, comma-separated, e.g. t=time_s,length=len_mm "
-                   "(default: CSV columns named like contract columns).")
+              help="Target = CSV column, comma-separated, e.g. t=time_s,length=len_mm,temperature=T_C,"
+                   "force=F_N. Targets: contract columns, the channels temperature, force, pressure, stress, "
+                   "strain, current, voltage, angle, or any other name (an extra column). Default: CSV columns "
+                   "named like these, and columns whose header gives a unit.")
 @click.option("--units", "unit_opts", multiple=True,
-              help="Column = unit, e.g. t=ms,load=g (default: the unit in the header, 'name [unit]', else the "
-                   "contract unit).")
+              help="Column = unit, e.g. t=ms,load=g,temperature=K (default: the unit in the header, "
+                   "'name [unit]', else the stored unit). Extra columns other than the channels need one.")
+@click.option("--sample-period", "sample_period_s", type=float, default=None,
+              help="The file has no time column: t = row index x this period (s), rows in file order.")
 @click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
 @click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
-def import_cmd(csv_file: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], metas: tuple[str, ...],
-               out_file: str) -> None:
-    """Turn CSV_FILE from another rig into a run file (backend "import"); see docs/analysis.md."""
+def import_cmd(csv_file: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], sample_period_s: float | None,
+               metas: tuple[str, ...], out_file: str) -> None:
+    """Turn CSV_FILE from another rig into a run file (backend "import"); see docs/analysis.md.
+
+    Columns beyond the contract (temperature, force, pressure, ...) are kept as extra
+    /samples columns with their units (docs/run-format.md)."""
     from tsa_bench.store.csv_import import CsvImportError, import_csv
     from tsa_bench.store.inspect import inspect_run
 
@@ -116,7 +123,7 @@ def import_cmd(csv_file: str, maps: tuple[str, ...], unit_opts: tuple[str, ...],
         meta[key.strip()] = value
     try:
         path = import_csv(csv_file, out_file, _pairs(maps, "--map") if maps else None,
-                          _pairs(unit_opts, "--units"), meta)
+                          _pairs(unit_opts, "--units"), meta, sample_period_s)
     except CsvImportError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(EXIT_BAD_INPUT)

@@ -308,10 +308,13 @@ def effects(bench_path: str | None) -> None:
     for effect in describe_effects():
         name = effect["name"]
         cfg = configured.get(name) if isinstance(configured, dict) else None
-        cfg = cfg if isinstance(cfg, dict) else {}
+        cfg = {"enabled": cfg} if isinstance(cfg, bool) else cfg if isinstance(cfg, dict) else {}
         state = ""
         if bench_path is not None:
-            state = "  [off]" if cfg.get("enabled") is False else "  [on]"
+            on = cfg.get("enabled", effect["default_enabled"])
+            state = "  [on]" if on else "  [off]"
+        elif not effect["default_enabled"]:
+            state = "  [off unless a bench file switches it on]"
         click.echo(f"{name}  ({effect['stage']}){state}")
         click.echo(f"    {effect['doc']}")
         click.echo(f"    source: {effect['source']}")

@@ -62,8 +62,11 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 @click.command("fit")
 @click.argument("model", type=click.Choice(MODEL_NAMES))
 @click.argument("runs", nargs=-1, required=True)
-@click.option("--input", "input_col", default=None, help="Input column: turns | heater_voltage | resistance.")
-@click.option("--output", "output_col", default=None, help="Output column: length | resistance.")
+@click.option("--input", "input_col", default=None,
+              help="Input column (preisach/polynomial; default turns): any numeric sample column, e.g. "
+                   "heater_voltage, resistance or an extra channel such as temperature.")
+@click.option("--output", "output_col", default=None,
+              help="Output column (preisach/polynomial; default length): any other numeric column, e.g. strain.")
 @click.option("--validate", "validate", multiple=True, help="Run file to validate on (repeatable).")
 @click.option("--levels", default=20, show_default=True, help="Preisach discretisation M.")
 @click.option("--load-g", "load_g", type=float, default=None,
@@ -72,7 +75,7 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
             validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
-    from tsa_bench.models.fitting import FitError, fit, loads_g, quasi_static_mask
+    from tsa_bench.models.fitting import FitError, fit, fit_notes
     from tsa_bench.models.saved import ModelFileError, save_model
 
     if not 1 <= levels <= 200:
@@ -85,12 +88,8 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
         saved = fit(model, train, input_col, output_col, val, levels=levels, load_g=load_g)
     except (FitError, ModelFileError) as exc:
         _fail(str(exc))
-    if load_g is None and model in ("preisach", "polynomial"):
-        for r in train:
-            loads = loads_g(r, quasi_static_mask(r, saved.input["column"]))
-            if len(loads) > 1:
-                click.echo(f"note: {r.path} holds samples at {len(loads)} loads ({', '.join(f'{g:g}' for g in loads)} g); "
-                           "one model was fitted across them. The thesis fits one per load: --load-g", err=True)
+    for note in fit_notes(saved, train):
+        click.echo(f"note: {note}", err=True)
     try:
         save_model(saved, out)
     except OSError as exc:

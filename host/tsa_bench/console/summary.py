@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from tsa_bench.console.progress import hms
-from tsa_bench.store.inspect import RunInfo
+from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.store.inspect import ColumnStats, RunInfo
 
 SHOWN = ("t", "turns", "length", "resistance", "heater_voltage", "load", "motor_moving")
 
@@ -28,6 +29,13 @@ def format_run_info(info: RunInfo, *, verbose: bool = True) -> str:
         for name in SHOWN:
             c = info.columns.get(name)
             if c is not None:
-                lines.append(f"{name:<16}{c.units:<8}{c.min:>12.4g}{c.mean:>12.4g}{c.max:>12.4g}"
-                             f"{c.finite:>10d}")
+                lines.append(_column_line(name, c))
+        extra = [n for n in info.columns if n not in SAMPLE_COLUMNS]
+        if extra:
+            lines.append(f"extra columns ({len(extra)}, beyond the contract):")
+            lines += [_column_line(name, info.columns[name]) for name in extra]
     return "\n".join(lines)
+
+
+def _column_line(name: str, c: ColumnStats) -> str:
+    return f"{name:<16}{c.units:<8}{c.min:>12.4g}{c.mean:>12.4g}{c.max:>12.4g}{c.finite:>10d}"

@@ -5,12 +5,17 @@ stored with units (:mod:`tsa_bench.models.saved`).
 
 Contract:
 
-* preisach / polynomial map one input column (turns, heater_voltage or resistance) to
-  one output column (length or resistance). They are fitted and scored on the
-  quasi-static samples (:func:`quasi_static_mask`: motor stopped, last third of each
-  segment; for heater_voltage input only at the twist where the heater was used),
-  optionally only at one declared load (:func:`load_mask`), the Preisach relays being
-  driven by the whole input history of each run.
+* preisach / polynomial map any numeric sample column to any other (by default turns
+  -> length; e.g. heater_voltage or resistance -> length, or an extra channel such as
+  temperature -> strain). They are fitted and scored on the quasi-static samples
+  (:func:`quasi_static_mask`: motor stopped, last third of each segment; for
+  heater_voltage input only at the twist where the heater was used); a run without
+  segments (an import) has no holds to pick from, so its whole run is used
+  (:func:`uses_whole_run`). Optionally only samples at one declared load
+  (:func:`load_mask`); the Preisach relays are driven by the whole input history of each run.
+* :func:`fit_notes` says what a user should know about a fit: runs used whole for lack
+  of segments, several loads mixed in one model, more parameters than a tenth of the
+  samples they were fitted on.
 * strain-resistance maps length -> resistance, self-sensing resistance (+ the
   motor-moving flag) -> length; both are fitted and scored on the hold samples
   (motor stopped after a move). Self-sensing first identifies the strain-resistance
@@ -37,6 +42,7 @@ from tsa_bench.models.steps import RunSeries, series_from_arrays
 from tsa_bench.models.strain_resistance import StrainResistanceModel
 from tsa_bench.store.reader import RunData
 
+#: the usual inputs and outputs of the thesis (any numeric column is accepted)
 INPUTS = ("turns", "heater_voltage", "resistance")
 OUTPUTS = ("length", "resistance")
 FIXED_IO = {"strain-resistance": ("length", "resistance"), "self-sensing": ("resistance", "length")}
@@ -48,18 +54,31 @@ class FitError(ValueError):
 
 def _column(run: RunData, name: str) -> np.ndarray:
     if name not in run.samples:
-        raise FitError(f"{run.path}: no sample column '{name}'")
+        raise FitError(f"{run.path}: no sample column '{name}' (columns: {', '.join(run.samples)})")
+    if run.samples[name].dtype.kind not in "fiu":
+        raise FitError(f"{run.path}: column '{name}' is not numeric")
     a = np.asarray(run.samples[name], dtype=float)
     if not np.isfinite(a).any():
         raise FitError(f"{run.path}: column '{name}' has no finite samples")
     return a
 
 
+def uses_whole_run(run: RunData) -> bool:
+    """True when the run has no segments (every sample's ``segment`` < 0): no holds to choose from."""
+    seg = np.asarray(run.samples["segment"])
+    return not bool((seg >= 0).any())
+
+
 def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
-    """Motor stopped and in the last third of its segment; heater input: only at the heating twist."""
+    """Motor stopped and in the last third of its segment; heater input: only at the heating twist.
+
+    A run without segments (:func:`uses_whole_run`) is used whole.
+    """
     moving = np.asarray(run.samples["motor_moving"]).astype(bool)
     seg = np.asarray(run.samples["segment"])
     t = run.t_s
+    if uses_whole_run(run):
+        return np.ones(len(t), bool)
     mask = np.zeros(len(t), bool)
     for s in np.unique(seg):
         idx = np.flatnonzero((seg == s) & ~moving)
@@ -116,10 +135,6 @@ def _check_io(model: str, input_col: str | None, output_col: str | None) -> tupl
             raise FitError(f"model '{model}' maps {fixed[0]} -> {fixed[1]}; --input/--output cannot change that")
         return fixed
     i, o = input_col or "turns", output_col or "length"
-    if i not in INPUTS:
-        raise FitError(f"--input must be one of {', '.join(INPUTS)}, got '{i}'")
-    if o not in OUTPUTS:
-        raise FitError(f"--output must be one of {', '.join(OUTPUTS)}, got '{o}'")
     if i == o:
         raise FitError(f"input and output are both '{i}'")
     return i, o
@@ -252,3 +267,41 @@ def fit(model: str, runs: list[RunData], input_col: str | None = None, output_co
     for r in validate or []:
         saved.metrics["validation"][r.path] = evaluate(saved, r, obj)[1]
     return saved
+
+
+def parameter_count(saved: SavedModel) -> int:
+    """Number of identified numbers in a saved model (list parameters count each element)."""
+    n = 0
+    for name, entry in saved.parameters.items():
+        if name in ("levels", "u_min", "u_max", "sign", "eps"):  # structure, not identified
+            continue
+        v = entry["value"]
+        n += len(v) if isinstance(v, list) else 1
+    return n
+
+
+def fit_notes(saved: SavedModel, runs: list[RunData]) -> list[str]:
+    """What the user should know about a fit (module contract), one sentence each."""
+    notes = []
+    io_in = saved.input["column"]
+    load_g = saved.options.get("load_g")
+    n_fit = 0
+    for r in runs:
+        if saved.model in FIXED_IO:
+            n_fit += int(saved.metrics["identification"].get(r.path, {}).get("n", 0))
+            continue
+        mask = quasi_static_mask(r, io_in) & load_mask(r, load_g)
+        n_fit += int((mask & np.isfinite(_column(r, saved.output["column"]))).sum())
+        if uses_whole_run(r):
+            notes.append(f"{r.path} has no segments (no holds to take quasi-static samples from): "
+                         f"the whole run, {len(r)} samples, was used")
+        elif load_g is None:
+            loads = loads_g(r, quasi_static_mask(r, io_in))
+            if len(loads) > 1:
+                notes.append(f"{r.path} holds samples at {len(loads)} loads ({', '.join(f'{g:g}' for g in loads)} g); "
+                             "one model was fitted across them. The thesis fits one per load: --load-g")
+    k = parameter_count(saved)
+    if n_fit and k > n_fit / 10:
+        notes.append(f"the {saved.model} model has {k} parameters for {n_fit} fitted samples (more than a tenth "
+                     "of them): it can follow noise; judge it on --validate runs, or use fewer levels")
+    return notes

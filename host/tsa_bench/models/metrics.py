@@ -56,7 +56,9 @@ class Metrics:
     """Summary of one comparison: ``unit`` of the data; ``n`` points.
 
     ``e_aver`` and ``sigma`` (eqs. 3.5-3.6) and ``max_abs`` in ``unit``;
-    ``mean_percent`` and ``max_percent`` are eq. 3.21 (percent of the measured value).
+    ``mean_percent`` and ``max_percent`` are eq. 3.21 (percent of the measured value),
+    over the points whose measured value is not zero (NaN when all are zero, e.g. a
+    strain that starts at 0).
     """
 
     n: int
@@ -74,7 +76,8 @@ class Metrics:
 def compare(measured: np.ndarray, predicted: np.ndarray, unit: str) -> Metrics:
     """All metrics of :class:`Metrics` for one measured/predicted pair of arrays."""
     m, p = _pairs(measured, predicted)
-    rel = relative_errors_percent(m, p)
+    nonzero = m != 0
+    rel = relative_errors_percent(m[nonzero], p[nonzero]) if nonzero.any() else np.array([np.nan])
     e = np.abs(p - m)
     return Metrics(n=int(len(m)), unit=unit, e_aver=e_aver(m, p), sigma=sigma(m, p), max_abs=float(e.max()),
                    mean_percent=float(rel.mean()), max_percent=float(rel.max()))

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.runner.documents import SAMPLE_COLUMNS
+
 #: Root attributes shown first, in this order (docs/run-format.md).
 _FIRST = ("plan_name", "exit_status", "reason", "created", "backend", "firmware", "software", "duration_s",
           "wall_time_s", "samples_lost", "port")
@@ -74,6 +76,17 @@ def write_index(report) -> Path:
     parts.append("<h2>Run</h2><table>")
     parts += [f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _attr_rows(run.attrs)]
     parts.append("</table>")
+    extra = [k for k in run.samples if k not in SAMPLE_COLUMNS]
+    if extra:
+        parts.append("<h2>Extra columns</h2><p>Columns beyond the run-file contract:</p><table>"
+                     "<tr><th>column</th><th>units</th><th>finite samples</th><th>min</th><th>max</th></tr>")
+        for k in extra:
+            a = np.asarray(run.samples[k], float) if run.samples[k].dtype.kind in "fiu" else np.array([np.nan])
+            ok = a[np.isfinite(a)]
+            lo, hi = (f"{ok.min():.6g}", f"{ok.max():.6g}") if len(ok) else ("-", "-")
+            parts.append(f"<tr><td>{_e(k)}</td><td>{_e(run.units.get(k, ''))}</td><td>{len(ok)}</td>"
+                         f"<td>{lo}</td><td>{hi}</td></tr>")
+        parts.append("</table>")
     parts.append("<h2>Figures</h2>")
     if not report.figures:
         parts.append("<p>No figures: the run has no samples.</p>")

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from tsa_bench.report import run_figures as rf
+from tsa_bench.report.extra_figures import extra_columns, fig_extras, fig_extras_xy
 from tsa_bench.report.fig_common import Figure, finite_any_col
 from tsa_bench.report.html import write_index
 from tsa_bench.report.run_analysis import cycle_table, motor_stops, plateaus, span, stiffness_points
@@ -33,6 +34,8 @@ KINDS: dict[str, tuple[Callable[[RunData, Path], str | None], str]] = {
     "resistance_length": (rf.fig_resistance_length, "Fig. 2.7(c)-(f)"),
     "transient": (rf.fig_transient, "Fig. 2.8(a)-(b)"),
     "drift": (rf.fig_drift, "Fig. 2.8(d)"),
+    "extras": (fig_extras, "-- (channels beyond the contract)"),
+    "extras_xy": (fig_extras_xy, "-- (channels beyond the contract)"),
 }
 
 
@@ -58,10 +61,12 @@ def select_figures(run: RunData) -> tuple[list[str], dict[str, str]]:
     volt_levels = {round(p.heater_voltage, 6) for p in rests if np.isfinite(p.heater_voltage)}
     table = cycle_table(run)
     n_cycles = 0 if table is None else len(table.cycle)
+    extras = extra_columns(run)
     stops = [p for p in motor_stops(run) if np.isfinite(s["resistance"][p.start:p.stop]).sum() >= 3]
     rl_rests = [p for p in rests if np.isfinite(p.resistance) and np.isfinite(p.length)]
     checks = {
-        "timeseries": (True, ""),
+        "timeseries": (any(finite_any_col(s[c]) for c in ("turns", "length", "resistance")),
+                       "turns, length and resistance are all unmeasured (see the extra channels)"),
         "stiffness": (len(stiffness_points(run)) >= 2,
                       "needs rests at one twist level under no load and at least two other loads"),
         "loops": (twisted and has_l, "needs the twist to change and length to be measured"),
@@ -71,6 +76,8 @@ def select_figures(run: RunData) -> tuple[list[str], dict[str, str]]:
         "transient": (has_r and len(stops) >= 3, "needs at least 3 rests of 2 s or more after a move, "
                                                  "with resistance measured"),
         "drift": (n_cycles >= 5, f"needs a repeat block of at least 5 cycles (has {n_cycles})"),
+        "extras": (len(extras) >= 1, "the run has no columns beyond the contract"),
+        "extras_xy": (len(extras) >= 2, "needs two or more columns beyond the contract"),
     }
     chosen = [k for k in KINDS if checks[k][0]]
     return chosen, {k: checks[k][1] for k in KINDS if not checks[k][0]}

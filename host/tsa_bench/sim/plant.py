@@ -21,7 +21,9 @@ file's ``plant`` mapping is::
             effects: {<name>: {enabled: bool, <param>: value, ...}, ...}}
 
 Omitted effects and parameters take the defaults documented on each effect class
-(``tsa-bench effects``; configs/bench/sim.yaml lists them all). ``sample`` costs a few
+(``tsa-bench effects``; configs/bench/sim.yaml lists them all): an omitted effect is on,
+except the later additions marked ``default_enabled = False`` (twist_stiffening,
+thermal_actuation, length_settling, resistance_settling), which a bench file switches on. ``sample`` costs a few
 tens of microseconds with every effect on.
 """
 
@@ -191,7 +193,8 @@ def plant_from_config(plant_cfg: Mapping[str, Any], seed: int | None = None) -> 
     """Build the plant from a bench file's ``plant`` mapping; raise ValueError naming a bad key.
 
     ``seed`` overrides ``plant_cfg['seed']``; with neither, noise is not reproducible.
-    Missing keys and effects take their documented defaults (every effect on).
+    Missing keys and effects take their documented defaults (every effect on except those
+    with ``default_enabled`` False).
     """
     where = "plant"
     check_keys(plant_cfg, PLANT_KEYS, where)

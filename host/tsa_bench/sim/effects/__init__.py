@@ -15,10 +15,14 @@ from typing import Any
 from tsa_bench.sim.effects.base import (EFFECTS, FORMS, STAGES, Effect, PlantState, build_effect, canonical_order,
                                         check_keys, describe_effect, effect_class, number_param, parse_effect_config,
                                         param, register_effect, register_form)
-from tsa_bench.sim.effects import motor as _motor  # noqa: F401  (registration order = module order)
+# registration order = module order within a stage; coupling first, so that twist
+# stiffening sets its stiffness factor before load_dependence and string_compliance
+from tsa_bench.sim.effects import coupling as _coupling  # noqa: F401
+from tsa_bench.sim.effects import motor as _motor  # noqa: F401
 from tsa_bench.sim.effects import thermal as _thermal  # noqa: F401
 from tsa_bench.sim.effects import mechanics as _mechanics  # noqa: F401
 from tsa_bench.sim.effects import resistance as _resistance  # noqa: F401
+from tsa_bench.sim.effects import variability as _variability  # noqa: F401
 from tsa_bench.sim.effects import sensing as _sensing  # noqa: F401
 from tsa_bench.sim.effects import forms_motor as _forms_motor  # noqa: F401  (alternative forms, off by default)
 from tsa_bench.sim.effects import forms_mechanics as _forms_mechanics  # noqa: F401

@@ -11,8 +11,10 @@ the ``kinematics`` stage is the plant's own TSA model, not an effect). Within a 
 effects run in registration order. An effect reads and writes the state's slots in
 place (``apply(state) -> None``) and keeps its own memory (play operators, creep,
 transients) between calls; ``reset()`` forgets that memory. Every effect declares
-``name``, ``stage``, ``source`` (thesis section / paper) and a ``Params`` dataclass
-whose fields carry ``metadata={"units": ..., "doc": ...}``; :func:`build_effect`
+``name``, ``stage``, ``source`` (thesis section / paper), ``default_enabled`` (on when a
+bench file does not name it; True except for effects added after the presets, which a
+bench file must switch on) and a ``Params`` dataclass whose fields carry
+``metadata={"units": ..., "doc": ...}``; :func:`build_effect`
 validates a config mapping against it and raises ``ValueError`` naming bad keys.
 """
 
@@ -85,6 +87,9 @@ class Effect:
     stage: ClassVar[str] = ""
     source: ClassVar[str] = ""
     Params: ClassVar[type] = NoParams
+    #: whether a bench file that does not name the effect gets it; effects added to the
+    #: library later are off by default, so that no existing bench file changes behaviour
+    default_enabled: ClassVar[bool] = True
 
     def __init__(self, params: Any = None, rng: random.Random | None = None) -> None:
         self.params = params if params is not None else self.Params()
@@ -194,7 +199,7 @@ def parse_effect_config(name: str, cfg: Any) -> tuple[bool, Any]:
         raise ValueError(f"{where}: must be a mapping (enabled: bool, parameters), got {cfg!r}")
     fields = {f.name: f for f in dataclasses.fields(cls.Params)}
     check_keys(cfg, ("enabled", *fields), where)
-    enabled = cfg.get("enabled", True)
+    enabled = cfg.get("enabled", cls.default_enabled)
     if not isinstance(enabled, bool):
         raise ValueError(f"{where}: 'enabled' must be true or false, got {enabled!r}")
     values = {}
@@ -224,6 +229,7 @@ def describe_effect(cls: type[Effect]) -> dict[str, Any]:
         "name": cls.name,
         "stage": cls.stage,
         "source": cls.source,
+        "default_enabled": cls.default_enabled,
         "doc": doc[0] if doc else "",
         "params": [{"name": f.name, "units": f.metadata.get("units", ""), "default": f.default,
                     "doc": f.metadata.get("doc", "")} for f in dataclasses.fields(cls.Params)],

@@ -42,7 +42,7 @@ class LoadDependence(Effect):
 
     ``hysteresis_scale = (m / m_ref)^hysteresis_exponent`` multiplies the twist play and
     the resistance hysteresis (not creep or transient decay); ``K_eff = K (1 - s c)``
-    (floored at 0.2 K) with ``c = (L - X) / X`` the contraction of the previous sample
+    (floored at 0.2 K; multiplies any factor an earlier geometry effect set) with ``c = (L - X) / X`` the contraction of the previous sample
     and ``s`` the softening. Source: thesis section 2.3, Fig. 2.4(d) (stiffness
     decreased as contraction increased; mild hysteresis), section 2.4.2 (hysteresis
     under all loads); Palli et al. (stiffness vs rotations).
@@ -63,7 +63,7 @@ class LoadDependence(Effect):
         p = self.params
         ratio = state.load_g / p.reference_load_g
         state.hysteresis_scale = ratio ** p.hysteresis_exponent if ratio > 0.0 else 0.0
-        state.stiffness_factor = max(0.2, 1.0 - p.stiffness_softening * state.contraction)
+        state.stiffness_factor *= max(0.2, 1.0 - p.stiffness_softening * state.contraction)
 
 
 @register_effect

@@ -1,0 +1,97 @@
+"""`tsa-bench reproduce`: every thesis measurement against the calibrated simulated bench.
+
+Exit codes: 0 the table was produced (whatever it says); 2 bad input (a record file or
+the calibration plan is invalid: every problem with file:line:col).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import click
+
+from tsa_bench.cli.exits import fail
+
+
+def _num(v: float | None) -> str:
+    return "-" if v is None else f"{v:.4g}"
+
+
+@click.command("reproduce")
+@click.option("--quick", is_flag=True, help="Shortened experiments (fewer cycles, shorter holds) for a fast check.")
+@click.option("--json", "as_json", is_flag=True, help="Print the rows and the summary as JSON instead of the table.")
+@click.option("--figures", "figures_dir", type=click.Path(file_okay=False), default=None,
+              help="Write one figure per thesis chapter (chapterN.png) into this directory.")
+@click.option("--records", "records_dir", type=click.Path(file_okay=False), default=None,
+              help="Directory of record files (default: configs/thesis/).")
+@click.option("--plan", "plan_file", type=click.Path(dir_okay=False), default=None,
+              help="Calibration plan (default: configs/thesis/calibration.yaml).")
+@click.option("--chapter", type=int, default=None, help="Only the records of this thesis chapter.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Noise seed of the simulated runs.")
+def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: str | None, plan_file: str | None,
+              chapter: int | None, seed: int) -> None:
+    """Run each thesis experiment on its simulated preset and print thesis vs simulated, gap and verdict.
+
+    Verdicts: agrees (within the thesis's own spread), disagrees (with the named reason),
+    consistency-only (the simulator was built from that number; never counted as
+    agreement), not simulated (why). Roles: fitted (a preset was calibrated to it),
+    held-out, built-from. See docs/thesis-records.md.
+    """
+    from tsa_bench.reproduce.experiments import Lab
+    from tsa_bench.reproduce.plan import plan_or_empty
+    from tsa_bench.reproduce.records import RecordsError, load_records, record_files
+    from tsa_bench.reproduce.table import evaluate, summary
+
+    t0 = time.perf_counter()
+    try:
+        files = record_files(records_dir) if records_dir is not None else None
+        if files is not None and not files:
+            fail(f"{records_dir}: no record files (*.yaml)")
+        records = load_records(files)
+        plan = plan_or_empty(records, plan_file)
+    except RecordsError as exc:
+        fail(str(exc))
+    if chapter is not None:
+        records = [r for r in records if r.chapter == chapter]
+        if not records:
+            fail(f"no records of chapter {chapter}")
+    lab = Lab(seed=seed, quick=quick)
+    rows = evaluate(records, lab, plan)
+    summ = summary(rows)
+    summ["quick"] = quick
+    summ["seconds"] = round(time.perf_counter() - t0, 1)
+    if figures_dir is not None:
+        from tsa_bench.reproduce.figures import write_figures
+
+        for path in write_figures(records, rows, figures_dir):
+            click.echo(f"wrote {path}", err=as_json)
+    if as_json:
+        click.echo(json.dumps({"rows": [r.as_dict() for r in rows], "summary": summ}, indent=1))
+        return
+    head = f"{'record':36s} {'thesis':>26s} {'simulated':>11s} {'gap':>10s} {'gap %':>7s} {'tolerance':>18s} " \
+           f"{'verdict':>16s} {'role':>10s}  reason / source"
+    current = None
+    for r in rows:
+        if r.chapter != current:
+            current = r.chapter
+            click.echo(f"\nchapter {current}\n{head}")
+        gp = "-" if r.gap_percent is None else f"{r.gap_percent:+.0f}"
+        gap = "-" if r.gap is None else f"{r.gap:+.4g}"
+        tail = r.reason if r.reason else r.source
+        click.echo(f"{r.id:36s} {r.thesis:>26s} {_num(r.simulated):>11s} {gap:>10s} {gp:>7s} {r.tolerance:>18s} "
+                   f"{r.verdict:>16s} {r.role:>10s}  {tail}")
+    v = summ["by_verdict"]
+    click.echo(f"\n{summ['records']} records: {v['agrees']} agree, {v['disagrees']} disagree, "
+               f"{v['consistency-only']} consistency-only (never counted), {v['not simulated']} not simulated, "
+               f"{v['not computed']} not computed")
+    for role, c in sorted(summ["by_role"].items()):
+        click.echo(f"  {role}: {c['agrees']} agree, {c['disagrees']} disagree")
+    for kind, c in sorted(summ["held_out_by_kind"].items()):
+        what = "measured quantities" if kind == "quantity" else "model coefficients and parameters (Tables 3.1-3.3)"
+        click.echo(f"  held-out {what}: {c['agrees']} agree, {c['disagrees']} disagree")
+    if summ["unexplained_disagreements"]:
+        click.echo("disagreements without a named reason: " + ", ".join(summ["unexplained_disagreements"]))
+    click.echo(f"({summ['seconds']} s{', quick experiments' if quick else ''})")
+    sys.stdout.flush()
