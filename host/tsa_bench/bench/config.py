@@ -25,9 +25,10 @@ from typing import Any
 from tsa_bench.bench.ports import PortPolicyError, check_port
 from tsa_bench.documents import DocumentError, YamlDocument, parse_yaml, read_text_file
 from tsa_bench.plan.limits import Limits
+from tsa_bench.shipped import shipped
 
-#: Where the shipped bench files live when running from a source checkout.
-CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
+#: Where the shipped bench files live (the source tree's configs/bench, or the wheel's copy).
+CONFIG_DIR = shipped("bench")
 BACKENDS = ("sim", "serial", "simavr")
 KNOWN_KEYS = ("name", "backend", "port", "baud", "steps_per_turn", "limits", "watchdog_s", "queue_slots",
               "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr")

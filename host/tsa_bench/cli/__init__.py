@@ -1,7 +1,8 @@
 """Command line: the `tsa-bench` group, one module per family of commands.
 
-- :mod:`.experiment`: run, validate, sim-serve, effects
-- :mod:`.data`: info, report, watch, import, export
+- :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
+- :mod:`.data`: info, ls, report, watch, import, export
+- :mod:`.rig`: ports, check, jog, zero, calibrate
 - :mod:`.models`: fit, predict, manipulator
 - :mod:`.diagnose`: diagnose
 
@@ -23,7 +24,7 @@ import click
 # command name -> "module:attribute" inside this package
 COMMANDS: dict[str, str] = {
     "validate": "experiment:validate",
-    "run": "experiment:run",
+    "run": "run:run",
     "sim-serve": "experiment:sim_serve",
     "effects": "experiment:effects",
     "info": "data:info",
