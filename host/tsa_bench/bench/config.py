@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from tsa_bench.bench.ports import PortPolicyError, check_port
+from tsa_bench.bench.records import check_records
 from tsa_bench.documents import DocumentError, YamlDocument, parse_yaml, read_text_file
 from tsa_bench.plan.limits import Limits
 from tsa_bench.shipped import shipped
@@ -31,7 +32,8 @@ from tsa_bench.shipped import shipped
 CONFIG_DIR = shipped("bench")
 BACKENDS = ("sim", "serial", "simavr")
 KNOWN_KEYS = ("name", "backend", "port", "baud", "steps_per_turn", "limits", "watchdog_s", "queue_slots",
-              "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr")
+              "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr",
+              "calibrations")
 # What the wire protocol can carry (protocol/messages.md): i32 steps, u32 step rates,
 # u16 mV heater voltage, u16 ms watchdog, u8 queue slots.
 I32_MAX, U32_MAX, U16_MAX, U8_MAX = 2**31 - 1, 2**32 - 1, 2**16 - 1, 2**8 - 1
@@ -58,18 +60,25 @@ class PositionCalibration:
 
 @dataclass(frozen=True)
 class ResistanceCalibration:
-    """CS5513 counts -> string resistance: ``R_ohm = ohm_per_count * counts``.
+    """CS5513 counts -> string resistance: ``R_ohm = offset_ohm + gain * ohm_per_count * counts``.
 
     ``ohm_per_count = V_ref / 2^19 / I_sense`` for the 20-bit bipolar converter across
-    the constant sense current ``sense_current_A``.
+    the constant sense current ``sense_current_A``; ``gain`` (1) and ``offset_ohm`` (0)
+    come from a calibration against reference resistors (``tsa-bench calibrate resistance``).
     """
 
     ohm_per_count: float
     sense_current_A: float
     adc_bits: int = 20
+    gain: float = 1.0
+    offset_ohm: float = 0.0
 
     def resistance_ohm(self, counts: Any) -> Any:
-        return self.ohm_per_count * counts
+        return self.offset_ohm + self.gain * self.ohm_per_count * counts
+
+    def counts(self, resistance_ohm: float) -> float:
+        """Inverse map (unrounded), used by the simulated converter."""
+        return (resistance_ohm - self.offset_ohm) / (self.gain * self.ohm_per_count)
 
     @property
     def max_counts(self) -> int:
@@ -210,7 +219,7 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
     pos = f.mapping(data, ("position_sensor",))
     res = f.mapping(data, ("resistance_sensor",))
     for section, allowed in (("position_sensor", ("mm_per_count", "offset_mm")),
-                             ("resistance_sensor", ("sense_current_A", "vref_V", "adc_bits"))):
+                             ("resistance_sensor", ("sense_current_A", "vref_V", "adc_bits", "gain", "offset_ohm"))):
         for key in data[section]:
             if key not in allowed:
                 raise f.fail((section, key), f"unknown key (allowed: {', '.join(allowed)})")
@@ -221,6 +230,8 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
     current = f.number(res, ("resistance_sensor", "sense_current_A"), gt=0, le=100.0, unit="A")
     vref = f.number(res, ("resistance_sensor", "vref_V"), gt=0, le=1000.0, unit="V")
     bits = f.integer(res, ("resistance_sensor", "adc_bits"), 20, lo=2, hi=32)
+    gain = f.number(res, ("resistance_sensor", "gain"), 1.0, ge=1e-3, le=1e3)
+    offset_ohm = f.number(res, ("resistance_sensor", "offset_ohm"), 0.0, ge=-1e6, le=1e6, unit="ohm")
     if not vref / 2 ** (bits - 1) / current >= 1e-15:  # the calibration must be a usable number
         raise f.fail(("resistance_sensor",), f"vref_V / 2^(adc_bits-1) / sense_current_A = "
                                              f"{vref / 2 ** (bits - 1) / current:g} ohm/count is too small")
@@ -237,7 +248,7 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
                                      offset_mm=f.number(pos, ("position_sensor", "offset_mm"), ge=-1e9, le=1e9,
                                                         unit="mm")),
         resistance=ResistanceCalibration(ohm_per_count=vref / 2 ** (bits - 1) / current, sense_current_A=current,
-                                         adc_bits=bits),
+                                         adc_bits=bits, gain=gain, offset_ohm=offset_ohm),
         ack_timeout_s=f.number(data, ("ack_timeout_s",), 0.25, ge=0.001, le=10.0, unit="s"),
         boot_timeout_s=f.number(data, ("boot_timeout_s",), 3.0, ge=0.0, le=600.0, unit="s"),
         plant=f.mapping(data, ("plant",), {}),
@@ -245,6 +256,7 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
         source_text=text,
         path=filename,
     )
+    check_records(doc, data.get("calibrations"))
     if bench.backend in ("sim", "simavr") or bench.plant:
         from tsa_bench.bench.plant_check import check_plant  # the simulation, only for simulated benches
 

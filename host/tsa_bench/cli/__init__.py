@@ -36,6 +36,10 @@ COMMANDS: dict[str, str] = {
     "predict": "models:predict_cmd",
     "manipulator": "models:manipulator_cmd",
     "diagnose": "diagnose:diagnose",
+    "ports": "rig:ports",
+    "check": "rig:check",
+    "jog": "rig:jog",
+    "calibrate": "calibrate:calibrate",
 }
 
 
