@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "sim-serve": "experiment:sim_serve",
     "effects": "experiment:effects",
     "info": "data:info",
+    "ls": "data:ls_cmd",
     "report": "data:report",
     "watch": "data:watch",
     "import": "data:import_cmd",

@@ -12,7 +12,12 @@ Contract of :func:`import_csv`:
   docs/run-format.md;
 * ``units`` {contract or CSV column: unit} overrides header units; values are converted
   to contract units (:data:`UNITS`; a load given as a mass in g or kg becomes N with
-  g0 = 9.80665 m/s^2);
+  g0 = 9.80665 m/s^2). A column's unit comes from ``units``, else its header
+  (``name [unit]``), else a unit at the end of its name (``time_ms``, ``len_cm``,
+  ``R_kohm``). Every chosen column measured in a physical unit must have one: a column
+  without is refused (all such columns named at once), never taken silently in the
+  contract unit (a time in ms read as s). Dimensionless and count columns (segment,
+  motor_moving, counter, raw counts, flags) need none;
 * every cell must parse: an empty or ``nan`` cell is NaN (not measured) in float
   columns, but an error in ``t`` and in integer columns; integers must fit their
   column's type (``position_raw`` is int16: 40000 is refused, never wrapped); no value
@@ -72,6 +77,15 @@ class CsvImportError(ValueError):
 def _split_header(cell: str) -> tuple[str, str]:
     m = _HEADER_UNIT.match(cell)
     return (m.group(1), m.group(2)) if m else (cell.strip(), "")
+
+
+def _name_unit(target: str, name: str) -> str:
+    """The unit at the end of a column name (``time_ms`` -> ``ms``), if it is one for ``target``."""
+    if "_" not in name:
+        return ""
+    suffix = name.rsplit("_", 1)[1]
+    accepted = list(UNITS.get(target, {})) + [SAMPLE_COLUMNS[target][1]]
+    return next((u for u in accepted if suffix == u or suffix.lower() == u.lower()), "")
 
 
 def _factor(target: str, unit: str, where: str) -> float:
@@ -217,12 +231,20 @@ def import_csv(csv_path: str | Path, out_path: str | Path, mapping: dict[str, st
     for key in units:
         if key not in cols and key not in header and key not in [_split_header(c)[0] for c in header]:
             raise CsvImportError(f"--units: '{key}' is neither a mapped column nor a CSV column")
-    factors, used = {}, {}
+    factors, used, unitless = {}, {}, []
     for target, i in cols.items():
         name, head_unit = _split_header(header[i])
-        unit = units.get(target, units.get(header[i], units.get(name, head_unit)))
+        unit = units.get(target, units.get(header[i], units.get(name, head_unit or _name_unit(target, name))))
+        contract = SAMPLE_COLUMNS[target][1]
+        if not unit and contract not in ("1", "count", "step"):
+            accepted = ", ".join(UNITS.get(target, {contract: 1.0}))
+            unitless.append(f"{src}:{header_line}: column '{header[i]}' ({target}) has no unit: give it in the "
+                            f"header ('{name} [{contract}]') or with --units {target}=UNIT ({accepted})")
+            continue
         factors[target] = _factor(target, unit, f"{src}:{header_line}: column '{header[i]}' ({target})")
-        used[target] = unit or SAMPLE_COLUMNS[target][1]
+        used[target] = unit or contract
+    if unitless:
+        raise CsvImportError("\n".join(unitless))
     data = _parse(src, header, rows, cols, factors)
     n = len(data["t"])
     samples = _fill(data, n)

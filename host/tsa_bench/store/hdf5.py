@@ -134,6 +134,7 @@ class RunWriter:
         a["plan_name"] = start.plan_name
         a["port"] = start.port
         a["estimated_duration_s"] = start.estimated_duration_s
+        a["n_segments"] = start.n_segments
         a["device_identity"] = json.dumps(start.identity)
         a["metadata"] = json.dumps(start.metadata, default=str)
         for key, value in start.extra_attrs.items():
