@@ -21,6 +21,8 @@ import importlib
 
 import click
 
+from tsa_bench import __version__
+
 # command name -> "module:attribute" inside this package
 COMMANDS: dict[str, str] = {
     "validate": "experiment:validate",
@@ -59,6 +61,6 @@ class LazyGroup(click.Group):
 
 
 @click.group(cls=LazyGroup)
-@click.version_option(package_name="tsa-bench")
+@click.version_option(version=__version__, prog_name="tsa-bench")  # not importlib.metadata: no scan at start
 def main() -> None:
     """tsa-bench: bench acquisition for twisted string actuators."""

@@ -64,13 +64,17 @@ def ls_cmd(folder: str) -> None:
 @click.argument("run_file", type=click.Path(dir_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Directory for the figures and index.html (default: RUN_report next to the run file).")
-def report(run_file: str, out_dir: str | None) -> None:
-    """Write PNG figures chosen by RUN_FILE's content and an index.html showing them."""
+@click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]), default="png", show_default=True,
+              help="Figure file format.")
+@click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
+              help="Resolution of raster figures (dots per inch).")
+def report(run_file: str, out_dir: str | None, fmt: str, dpi: int) -> None:
+    """Write figures chosen by RUN_FILE's content and an index.html showing them."""
     from tsa_bench.report.run_report import write_run_report
     from tsa_bench.store import RunFileError
 
     try:
-        rep = write_run_report(run_file, out_dir)
+        rep = write_run_report(run_file, out_dir, fmt=fmt, dpi=dpi)
     except RunFileError as exc:
         fail(str(exc))
     except OSError as exc:

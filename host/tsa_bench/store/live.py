@@ -47,13 +47,12 @@ from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlo
 
 MAGIC = b"TSALIVE1"
 VERSION = 2
-RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("adc_flags", "u1"), ("_pad", "u1"),
+RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("adc_flags", "u1"),
                    ("segment", "<i4"), ("counter", "<u4"), ("step_position", "<i4"), ("resistance_raw", "<i4"),
-                   ("position_raw", "<i2"), ("_pad2", "<i2"),
-                   ("t", "<f8"), ("turns", "<f8"), ("length", "<f8"), ("resistance", "<f8"),
+                   ("position_raw", "<i2"), ("t", "<f8"), ("turns", "<f8"), ("length", "<f8"), ("resistance", "<f8"),
                    ("heater_voltage", "<f8"), ("load", "<f8")])
 #: Record fields that are sample columns of the run file.
-SAMPLE_FIELDS = tuple(n for n in RECORD.names if n not in ("kind", "_pad", "_pad2"))
+SAMPLE_FIELDS = RECORD.names[1:]
 END_KINDS = {"success": 1, "aborted": 2, "failed": 3}
 END_NAMES = {v: k for k, v in END_KINDS.items()}
 MAX_HEADER_BYTES = 64 * 1024
