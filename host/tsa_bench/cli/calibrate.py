@@ -63,6 +63,7 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
     unit = "mm" if quantity == "position" else "ohm"
     turns = _numbers(at_turns, "--at-turns")
     device = ""
+    error = 0.0
     if points:
         if port or turns:
             fail("--points fits points already measured: give it without --port and --at-turns")
@@ -78,7 +79,8 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
         try:
             with _open_or_exit(url, bench) as link:
                 device = device_text(link)
-                counts, refs = acquire(link, quantity, _ask, at_turns=turns, seconds=seconds, say=click.echo)
+                counts, refs, error = acquire(link, quantity, _ask, at_turns=turns, seconds=seconds,
+                                              say=click.echo)
         except CalibrationError as exc:
             fail(str(exc))
         except RigError as exc:
@@ -87,7 +89,7 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
             click.echo("aborted; nothing was written", err=True)
             sys.exit(EXIT_ABORTED)
     try:
-        fit = fit_for(quantity, counts, refs, bench)
+        fit = fit_for(quantity, counts, refs, bench, error)
     except CalibrationError as exc:
         fail(str(exc))
     click.echo(f"{'counts':>12} {'reference':>12} {'fit':>12} {'residual':>10}   ({unit})")

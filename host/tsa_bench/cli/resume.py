@@ -34,6 +34,18 @@ def _stored_bench(run, resume_file: str, allow_url: bool, trust_firmware_dir: bo
     return parse_bench(run.bench_text, name, allow_url=allow_url, trust_firmware_dir=trust_firmware_dir), name
 
 
+def _protocol_path(run_file: str) -> str:
+    """The path the first run's protocol was read from (its /config/protocol attribute)."""
+    import h5py
+
+    try:
+        with h5py.File(run_file, "r") as f:
+            value = f["config/protocol"].attrs.get("path", "")
+    except (OSError, KeyError, RuntimeError):
+        return ""
+    return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
+
+
 def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, allow_url: bool,
                    trust_firmware_dir: bool):
     """(bench, plan, ResumePoint, bench file path) for resuming ``resume_file``."""
@@ -61,7 +73,10 @@ def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, a
         bench, bench_file = _stored_bench(run, resume_file, allow_url, trust_firmware_dir)
     # the name the first run's segment sources carry, so both files name the same lines
     source = f"{resume_file}:/config/protocol"
-    if run.segments is not None and len(run.segments):
+    stored_path = _protocol_path(resume_file)
+    if stored_path:
+        source = Path(stored_path).name
+    elif run.segments is not None and len(run.segments):
         first = run.segments["source"][0]
         first = first.decode(errors="replace") if isinstance(first, bytes) else str(first)
         if ":" in first:

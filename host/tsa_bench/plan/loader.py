@@ -147,9 +147,10 @@ def _variables(reader: Reader, node: Node | None) -> dict[str, Value]:
         return out
     names = [k.value for k, _ in node.value if isinstance(k, yaml.ScalarNode)]
     fields = reader.mapping(node, "variables", names) or {}
+    key_nodes = {k.value: k for k, _ in node.value if isinstance(k, yaml.ScalarNode)}
     for name, value_node in fields.items():
         if not NAME.match(name):
-            reader.sink.add(value_node, f"variables.{name}", f"{name!r} is not a variable name",
+            reader.sink.add(key_nodes[name], f"variables.{name}", f"{name!r} is not a variable name",
                             "letters, digits and _, not starting with a digit")
             continue
         value = scalar_value(reader, value_node, f"variables.{name}")

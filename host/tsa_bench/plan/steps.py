@@ -57,7 +57,7 @@ DEFAULT_SETTLE_WINDOW_S = 30.0
 #: Most values one for_each may list, and most steps all loops together may expand to
 #: while parsing (each value parses its body once).
 MAX_FOR_EACH_VALUES = 100_000
-MAX_PARSED_STEPS = 1_000_000
+MAX_PARSED_STEPS = 100_000
 
 STEP_KINDS: tuple[str, ...] = (
     "move_to", "move_by", "hold", "heater", "sampling", "prompt",
@@ -387,6 +387,13 @@ class StepParser:
         values = self._loop_values(fields, field) if "values" in fields else None
         if name is None or values is None or "steps" not in fields:
             return None
+        cost = len(values) * _steps_in(fields["steps"])
+        if self._parsed + cost > MAX_PARSED_STEPS:  # refused before parsing: a loop bomb costs nothing
+            self._too_many_reported = True
+            self.reader.sink.add(node, field, f"for_each loops expand to more than {MAX_PARSED_STEPS:,} steps "
+                                              f"(here about {self._parsed + cost:,})",
+                                 "fewer values or smaller loop bodies")
+            return None
         outer = self.scope
         bodies = []
         try:
@@ -417,6 +424,26 @@ class StepParser:
                 return None
             out.append(value)
         return out
+
+
+def _steps_in(node: Node) -> int:
+    """Step nodes a steps list parses to, counting nested loops' values (an estimate from the
+    nodes alone, before any substitution)."""
+    from yaml import SequenceNode
+
+    if not isinstance(node, SequenceNode):
+        return 1
+    total = 0
+    for step in node.value:
+        total += 1
+        if isinstance(step, MappingNode) and len(step.value) == 1 and isinstance(step.value[0][1], MappingNode):
+            kind = step.value[0][0].value if isinstance(step.value[0][0], ScalarNode) else ""
+            inner = {k.value: v for k, v in step.value[0][1].value if isinstance(k, ScalarNode)}
+            if kind in ("repeat", "for_each") and "steps" in inner:
+                times = len(inner["values"].value) if kind == "for_each" and isinstance(
+                    inner.get("values"), SequenceNode) else 1
+                total += times * _steps_in(inner["steps"])
+    return total
 
 
 def scalar_value(reader: Reader, node: Node, field: str) -> Value | None:

@@ -27,8 +27,10 @@ import numpy as np
 from tsa_bench.bench import BenchConfig
 from tsa_bench.protocol import msg
 
-#: How far apart (in counts, peak to peak) the points must lie for a fit.
+#: How far apart (in counts, peak to peak) the points must lie for a fit, at least; and
+#: in standard errors of the points' means when their noise is known.
 MIN_COUNT_SPREAD = 2.0
+MIN_SPREAD_IN_ERRORS = 10.0
 
 
 class CalibrationError(ValueError):
@@ -77,24 +79,28 @@ def _round(x: float) -> float:
     return float(f"{x:.10g}")
 
 
-def _line(counts: Sequence[float], reference: Sequence[float], what: str) -> tuple[float, float]:
+def _line(counts: Sequence[float], reference: Sequence[float], what: str,
+          count_error: float = 0.0) -> tuple[float, float]:
     c = np.asarray(counts, dtype=float)
     r = np.asarray(reference, dtype=float)
     if len(c) < 2 or len(c) != len(r):
         raise CalibrationError(f"a {what} calibration needs two or more points, got {len(c)}")
     if not (np.isfinite(c).all() and np.isfinite(r).all()):
         raise CalibrationError(f"a {what} calibration point is not a finite number")
-    if np.ptp(c) < MIN_COUNT_SPREAD:
+    need = max(MIN_COUNT_SPREAD, MIN_SPREAD_IN_ERRORS * count_error)
+    if np.ptp(c) < need:
         raise CalibrationError(
-            f"the counts hardly change between the points ({np.min(c):.1f}..{np.max(c):.1f}): the sensor did not "
-            f"see different {what}s - change the {what} more between the points")
+            f"the counts hardly change between the points ({np.min(c):.1f}..{np.max(c):.1f}, less than {need:.1f} "
+            f"apart given the sensor's noise): the sensor did not see different {what}s - change the {what} more "
+            "between the points")
     slope, intercept = np.polyfit(c, r, 1)
     return float(slope), float(intercept)
 
 
-def fit_position(counts: Sequence[float], length_mm: Sequence[float]) -> Fit:
-    """``length_mm = offset_mm + mm_per_count * counts`` (module contract)."""
-    slope, offset = _line(counts, length_mm, "length")
+def fit_position(counts: Sequence[float], length_mm: Sequence[float], count_error: float = 0.0) -> Fit:
+    """``length_mm = offset_mm + mm_per_count * counts`` (module contract); ``count_error``:
+    the largest standard error of a point's mean counts (0: unknown)."""
+    slope, offset = _line(counts, length_mm, "length", count_error)
     if not 1e-9 <= abs(slope) <= 1e3:
         raise CalibrationError(f"the fit gives {slope:g} mm/count, outside 1e-9..1e3 in magnitude: "
                                "check the ruler readings")
@@ -103,9 +109,10 @@ def fit_position(counts: Sequence[float], length_mm: Sequence[float]) -> Fit:
                tuple(map(float, length_mm)), tuple(map(float, fitted)), "mm")
 
 
-def fit_resistance(counts: Sequence[float], resistance_ohm: Sequence[float], ohm_per_count: float) -> Fit:
+def fit_resistance(counts: Sequence[float], resistance_ohm: Sequence[float], ohm_per_count: float,
+                   count_error: float = 0.0) -> Fit:
     """``R_ohm = offset_ohm + gain * ohm_per_count * counts`` (module contract)."""
-    slope, offset = _line(counts, resistance_ohm, "resistance")
+    slope, offset = _line(counts, resistance_ohm, "resistance", count_error)
     gain = slope / ohm_per_count
     if not 1e-3 <= gain <= 1e3:
         raise CalibrationError(f"the fit gives a gain of {gain:g} on the converter's {ohm_per_count:g} ohm/count, "
@@ -117,8 +124,8 @@ def fit_resistance(counts: Sequence[float], resistance_ohm: Sequence[float], ohm
                tuple(map(float, resistance_ohm)), tuple(map(float, fitted)), "ohm")
 
 
-def mean_counts(samples: Sequence[msg.Sample], quantity: str) -> float:
-    """Mean raw counts of the readings that are valid for ``quantity``."""
+def mean_counts(samples: Sequence[msg.Sample], quantity: str) -> tuple[float, float]:
+    """Mean raw counts of the readings that are valid for ``quantity``, and its standard error."""
     if quantity == "position":
         ok = [s.position_raw for s in samples if not s.adc_flags & msg.AdcFlags.POSITION_INVALID]
     else:
@@ -127,7 +134,7 @@ def mean_counts(samples: Sequence[msg.Sample], quantity: str) -> float:
     if not ok:
         raise CalibrationError(f"no valid {quantity} reading in {len(samples)} samples: check the sensor "
                                "(tsa-bench check)")
-    return float(np.mean(ok))
+    return float(np.mean(ok)), float(np.std(ok) / np.sqrt(len(ok)))
 
 
 def parse_reference(text: str, unit: str) -> float | None:
@@ -148,12 +155,14 @@ def parse_reference(text: str, unit: str) -> float | None:
 
 def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequence[float] = (),
             seconds: float = 1.0, rate_turns_per_s: float = 1.0, accel_turns_per_s2: float = 10.0,
-            say: Callable[[str], None] = print) -> tuple[list[float], list[float]]:
-    """Take calibration points on a connected :class:`~tsa_bench.rig.link.RigLink` (module contract)."""
+            say: Callable[[str], None] = print) -> tuple[list[float], list[float], float]:
+    """Take calibration points on a connected :class:`~tsa_bench.rig.link.RigLink` (module contract):
+    (mean counts, reference values, the largest standard error of a point's mean counts)."""
     unit = "mm" if quantity == "position" else "ohm"
     what = "ruler length" if quantity == "position" else "reference resistance"
     counts: list[float] = []
     refs: list[float] = []
+    error = 0.0
     period_s = min(0.1, max(0.01, seconds / 10))
     link.set_sampling(period_s)
     start_turns = link.samples(2 * period_s)[-1].step_position / link.steps_per_turn
@@ -165,7 +174,7 @@ def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequenc
                 link.move_to(turns, rate_turns_per_s, accel_turns_per_s2)
                 link.wait_idle(600.0)
                 got = link.samples(seconds)
-                c = mean_counts(got, quantity)
+                c, se = mean_counts(got, quantity)
                 value = parse_reference(ask(f"{what} now ({unit}): "), unit)
                 if value is None:
                     break
@@ -174,16 +183,17 @@ def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequenc
                                             "Enter alone when done: "), unit)
                 if value is None:
                     break
-                c = mean_counts(link.samples(seconds), quantity)
+                c, se = mean_counts(link.samples(seconds), quantity)
             say(f"point {i + 1}: {c:.2f} counts = {value:g} {unit}")
             counts.append(c)
             refs.append(value)
+            error = max(error, se)
     finally:
         if at_turns:
             link.move_to(start_turns, rate_turns_per_s, accel_turns_per_s2)
             link.wait_idle(600.0)
         link.set_sampling(0)
-    return counts, refs
+    return counts, refs, error
 
 
 def device_text(link) -> str:
@@ -191,7 +201,8 @@ def device_text(link) -> str:
     return f"firmware {ident.fw_major}.{ident.fw_minor}.{ident.fw_patch} on {link.port_name}"
 
 
-def fit_for(quantity: str, counts: Sequence[float], refs: Sequence[float], bench: BenchConfig) -> Fit:
+def fit_for(quantity: str, counts: Sequence[float], refs: Sequence[float], bench: BenchConfig,
+            count_error: float = 0.0) -> Fit:
     if quantity == "position":
-        return fit_position(counts, refs)
-    return fit_resistance(counts, refs, bench.resistance.ohm_per_count)
+        return fit_position(counts, refs, count_error)
+    return fit_resistance(counts, refs, bench.resistance.ohm_per_count, count_error)
