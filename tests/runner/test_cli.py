@@ -165,6 +165,7 @@ def test_pty_bench_end_to_end(tmp_path):
             assert f.attrs["exit_status"] == "success" and f.attrs["backend"] == "sim"
             assert "plant" not in f["config/bench"][()].decode()
             assert len(f["segments"]) == 5 and len(f["samples/t"]) > 500
+        assert "no --bench given for the serial port" in result.stderr and "arduino-mega.yaml" in result.stderr
     finally:
         server.send_signal(signal.SIGINT)
         try:
