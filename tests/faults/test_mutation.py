@@ -166,7 +166,7 @@ def test_a_fifo_is_refused_at_once_not_read(tmp_path):
 
 def test_csv_integers_out_of_range_are_refused_not_wrapped(tmp_path):
     c = tmp_path / "c.csv"
-    c.write_text("t,position_raw,counter\n0,100,0\n0.1,40000,1\n0.2,5,4294967296\n")
+    c.write_text("t [s],position_raw,counter\n0,100,0\n0.1,40000,1\n0.2,5,4294967296\n")
     res = invoke("import", str(c), "--out", str(tmp_path / "x.h5"), allowed=(2,))
     assert f"{c}:3: column 'position_raw'" in res.output and "-32768..32767" in res.output
     assert f"{c}:4: column 'counter'" in res.output and not (tmp_path / "x.h5").exists()

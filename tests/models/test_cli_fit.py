@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+from pathlib import Path
+
 import h5py
 import numpy as np
 import pytest
@@ -34,12 +36,18 @@ def test_fit_predict_round_trip(runs) -> None:
     saved = load_model_file(model)
     assert saved.training_files == [runs["a"]] and runs["b"] in saved.metrics["validation"]
     assert saved.parameters["b1"]["unit"] == "ohm" and saved.parameters["Lambda"]["unit"] == "1/s"
-    res = CliRunner().invoke(main, ["predict", str(model), runs["b"], "--write-prediction"])
+    before = Path(runs["b"]).read_bytes()
+    out = runs["dir"] / "b-predicted.h5"
+    res = CliRunner().invoke(main, ["predict", str(model), runs["b"], "--write-prediction", str(out)])
     assert res.exit_code == 0, res.output
-    with h5py.File(runs["b"], "r") as f:
+    assert Path(runs["b"]).read_bytes() == before  # the recorded run is never changed
+    with h5py.File(out, "r") as f:
         pred = f["samples/predicted_resistance"][()]
         meas = f["samples/resistance"][()]
         assert f["samples/predicted_resistance"].attrs["units"] == "ohm"
+        assert f.attrs["derived_from"] == Path(runs["b"]).name
+    again = CliRunner().invoke(main, ["predict", str(model), runs["b"], "--write-prediction", str(out)])
+    assert again.exit_code == 2 and "already exists" in again.output  # never overwritten silently
     ok = np.isfinite(pred)
     assert ok.sum() > 100 and np.mean(np.abs(pred[ok] - meas[ok])) < 0.01
     assert np.mean(np.abs(pred[ok] - meas[ok])) == pytest.approx(saved.metrics["validation"][runs["b"]]["e_aver"])

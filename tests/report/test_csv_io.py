@@ -79,19 +79,25 @@ BAD = [
     ("time_s,len\n0,1\n1,2\n", {"t": "time_s", "lenght": "len"}, {}, ["unknown target 'lenght'"]),
     ("time_s,len\n0,1\n1,2\n", {"length": "len"}, {}, ["'t' (time) must be mapped"]),
     ("len\n1\n", None, {}, ["rig.csv:1", "no column named 't'"]),
-    ("time_s,len\n0,1\n1,abc\n2,3\n", {"t": "time_s", "length": "len"}, {},
+    ("time_s,len\n0,1\n1,abc\n2,3\n", {"t": "time_s", "length": "len"}, {"length": "mm"},
      ["rig.csv:3", "column 'len' (length)", "cannot parse 'abc'"]),
-    ("time_s,len\n0,1\n2,2\n1,3\n", {"t": "time_s", "length": "len"}, {},
+    ("time_s,len\n0,1\n2,2\n1,3\n", {"t": "time_s", "length": "len"}, {"length": "mm"},
      ["rig.csv:4", "column 'time_s' (t)", "time 1 s is not after 2 s on line 3", "strictly increase"]),
-    ("time_s,len\n0,1\n0,2\n", {"t": "time_s", "length": "len"}, {}, ["rig.csv:3", "strictly increase"]),
-    ("time_s,len\n0,1\n,2\n", {"t": "time_s", "length": "len"}, {}, ["rig.csv:3", "(t)", "empty"]),
-    ("time_s,len\n0,1\n1,2,3\n", {"t": "time_s", "length": "len"}, {}, ["rig.csv:3", "3 cells, the header has 2"]),
+    ("time_s,len\n0,1\n0,2\n", {"t": "time_s", "length": "len"}, {"len": "mm"}, ["rig.csv:3", "strictly increase"]),
+    ("time_s,len\n0,1\n,2\n", {"t": "time_s", "length": "len"}, {"len": "mm"}, ["rig.csv:3", "(t)", "empty"]),
+    ("time_s,len\n0,1\n1,2,3\n", {"t": "time_s", "length": "len"}, {"len": "mm"},
+     ["rig.csv:3", "3 cells, the header has 2"]),
+    # a physical column without a unit is refused, never read in the contract unit (ms as s, cm as mm)
+    ("time,len,segment\n0,1,0\n", {"t": "time", "length": "len", "segment": "segment"}, {},
+     ["rig.csv:1: column 'time' (t) has no unit", "--units t=UNIT (s, ms, us, min, h)",
+      "column 'len' (length) has no unit", "'len [mm]'"]),
     ("time_s,len\n0,1\n", {"t": "time_s", "length": "len"}, {"len": "furlong"},
      ["rig.csv:1", "column 'len' (length)", "unit 'furlong' is not known", "mm, um, cm, m, in"]),
     ("time_s,len\n0,1\n", {"t": "time_s", "length": "len"}, {"width": "mm"}, ["--units: 'width'"]),
     ("# only a comment\n", None, {}, ["rig.csv", "no header line"]),
-    ("t,len\n", None, {}, ["rig.csv", "no data rows"]),
-    ("t,segment\n0,1.5\n", None, {}, ["rig.csv:2", "column 'segment' (segment)", "not a whole number"]),
+    ("t [s],len\n", None, {}, ["rig.csv", "no data rows"]),
+    ("t_s,segment\n0,1.5\n", {"t": "t_s", "segment": "segment"}, {},
+     ["rig.csv:2", "column 'segment' (segment)", "not a whole number"]),
 ]
 
 
@@ -106,13 +112,14 @@ def test_import_errors_say_where_and_what(tmp_path, text, mapping, units, parts)
 
 def test_import_cli_errors_and_never_replaces_a_run(tmp_path, protocol_runs):
     src = _csv(tmp_path, "time_s,len\n0,1\n1,x\n")
-    r = CliRunner().invoke(main, ["import", str(src), "--map", "t=time_s,length=len", "--out", str(tmp_path / "a.h5")])
+    r = CliRunner().invoke(main, ["import", str(src), "--map", "t=time_s,length=len", "--units", "length=mm",
+                                  "--out", str(tmp_path / "a.h5")])
     assert r.exit_code == 2 and "rig.csv:3" in r.output and "cannot parse 'x'" in r.output
     r = CliRunner().invoke(main, ["import", str(src), "--map", "t", "--out", str(tmp_path / "a.h5")])
     assert r.exit_code == 2 and "'t' is not KEY=VALUE" in r.output
     existing = tmp_path / "run.h5"
     existing.write_bytes(protocol_runs["stiffness-3ply"].read_bytes())
-    good = _csv(tmp_path, "t,length\n0,1\n1,2\n", "good.csv")
+    good = _csv(tmp_path, "t [s],length [mm]\n0,1\n1,2\n", "good.csv")
     r = CliRunner().invoke(main, ["import", str(good), "--out", str(existing)])
     assert r.exit_code == 2 and "already exists" in r.output
     assert len(read_run(existing)) == 5399
@@ -121,6 +128,6 @@ def test_import_cli_errors_and_never_replaces_a_run(tmp_path, protocol_runs):
 def test_many_bad_cells_are_reported_together(tmp_path):
     rows = "".join(f"{i},bad{i}\n" for i in range(30))
     with pytest.raises(CsvImportError) as err:
-        import_csv(_csv(tmp_path, "t,length\n" + rows), tmp_path / "x.h5")
+        import_csv(_csv(tmp_path, "t [s],length [mm]\n" + rows), tmp_path / "x.h5")
     msg = str(err.value)
     assert msg.count("cannot parse") == 20 and "rig.csv:2:" in msg and "stopped after the first errors" in msg

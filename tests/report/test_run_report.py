@@ -20,6 +20,7 @@ EXPECTED = {
     "twist-sweep-3ply": {"loops", "resistance_length"}, "twist-sweep-4ply": {"loops", "resistance_length"},
     "twist-heat-4ply": {"loops", "voltage"},
     "quasi-static-self-sensing": {"resistance_length", "transient"},
+    "quasi-static-self-sensing-settled": {"resistance_length", "transient"},
     "transient-steps": {"transient"}, "lifetime": {"drift"},
 }
 #: Figures a protocol's data cannot support (no load steps, no heating, no cycles, no twist).
@@ -51,7 +52,7 @@ def test_every_shipped_protocol_gets_its_thesis_figures(protocol_runs, tmp_path)
         page = rep.index.read_text()
         for fig in rep.figures:
             assert f"src='{fig.name}.png'" in page
-        assert name in page and "exit_status" in page
+        assert name in page and "<th>Exit status</th>" in page and "<th>exit_status</th>" not in page
 
 
 def test_stiffness_matches_the_simulated_string(protocol_runs):

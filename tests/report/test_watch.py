@@ -211,11 +211,17 @@ def test_live_table_shows_latest_values():
     rec = np.zeros(3, dtype=RECORD)
     rec["t"] = [1.0, 1.1, 1.2]
     rec["length"] = [250.0, 251.0, 252.5]
-    rec["resistance"] = [5.1, np.nan, np.nan]  # heater on: the last measured value is shown
+    rec["resistance"] = [5.1, np.nan, np.nan]  # heater on: not measured, never the stale value from before
+    rec["heater_voltage"] = [0.0, 3.0, 3.0]
     rec["segment"] = 2
     state.add(rec)
     console = Console(record=True, width=160)
     console.print(state.table("plan"))
     text = console.export_text()
-    assert "252.50" in text and "5.1000" in text and "3/7" in text and "length" in text
-    assert "resistance=5.1000 ohm" in state.line() and "samples=3" in state.line()
+    assert "252.50" in text and "not measured (heater on)" in text and "3/7" in text and "length" in text
+    assert "5.1000" not in text
+    assert "resistance=not measured (heater on)" in state.line() and "samples=3" in state.line()
+    cooled = np.zeros(1, dtype=RECORD)
+    cooled["t"], cooled["resistance"] = 1.3, 5.2
+    state.add(cooled)
+    assert "resistance=5.2000 ohm" in state.line()

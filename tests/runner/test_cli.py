@@ -161,8 +161,11 @@ def test_pty_bench_end_to_end(tmp_path):
         assert result.returncode == 0, result.stderr + result.stdout
         assert pty_path in result.stdout.splitlines()[0]
         with h5py.File(tmp_path / "pty.h5") as f:
-            assert f.attrs["exit_status"] == "success" and f.attrs["backend"] == "serial"
+            # a simulated device, even over a serial line; no --bench: the Mega bench file, no plant stored
+            assert f.attrs["exit_status"] == "success" and f.attrs["backend"] == "sim"
+            assert "plant" not in f["config/bench"][()].decode()
             assert len(f["segments"]) == 5 and len(f["samples/t"]) > 500
+        assert "no --bench given for the serial port" in result.stderr and "arduino-mega.yaml" in result.stderr
     finally:
         server.send_signal(signal.SIGINT)
         try:

@@ -17,8 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from tsa_bench.analysis.result import VERDICTS, Candidate, DiagnoseResult, Gain, NamedCause
+from tsa_bench.shipped import shipped
 
-CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
+CONFIG_DIR = shipped("bench")
 BASELINE = CONFIG_DIR / "sim-baseline.yaml"
 
 

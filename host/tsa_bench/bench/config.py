@@ -12,25 +12,30 @@ key and value (finite numbers in range, limits the wire protocol can carry), the
 ``port`` (:mod:`tsa_bench.bench.ports`), the ``plant`` of a simulated bench (built and
 sampled once across the bench limits, so a plant that cannot run is refused here and
 not half-way through a run) and the ``simavr`` section of a firmware-in-the-loop
-bench. Every error is one :class:`BenchConfigError` line ``file:line:col: key: what``.
+bench. Every error is one line ``file:line:col: key: what``; one :class:`BenchConfigError`
+lists the errors of every section at once, in file order (within a section, the first).
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from tsa_bench.bench.ports import PortPolicyError, check_port
+from tsa_bench.bench.records import check_records
 from tsa_bench.documents import DocumentError, YamlDocument, parse_yaml, read_text_file
 from tsa_bench.plan.limits import Limits
+from tsa_bench.shipped import shipped
 
-#: Where the shipped bench files live when running from a source checkout.
-CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs" / "bench"
+#: Where the shipped bench files live (the source tree's configs/bench, or the wheel's copy).
+CONFIG_DIR = shipped("bench")
 BACKENDS = ("sim", "serial", "simavr")
 KNOWN_KEYS = ("name", "backend", "port", "baud", "steps_per_turn", "limits", "watchdog_s", "queue_slots",
-              "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr")
+              "position_sensor", "resistance_sensor", "ack_timeout_s", "boot_timeout_s", "plant", "simavr",
+              "calibrations")
 # What the wire protocol can carry (protocol/messages.md): i32 steps, u32 step rates,
 # u16 mV heater voltage, u16 ms watchdog, u8 queue slots.
 I32_MAX, U32_MAX, U16_MAX, U8_MAX = 2**31 - 1, 2**32 - 1, 2**16 - 1, 2**8 - 1
@@ -57,18 +62,25 @@ class PositionCalibration:
 
 @dataclass(frozen=True)
 class ResistanceCalibration:
-    """CS5513 counts -> string resistance: ``R_ohm = ohm_per_count * counts``.
+    """CS5513 counts -> string resistance: ``R_ohm = offset_ohm + gain * ohm_per_count * counts``.
 
     ``ohm_per_count = V_ref / 2^19 / I_sense`` for the 20-bit bipolar converter across
-    the constant sense current ``sense_current_A``.
+    the constant sense current ``sense_current_A``; ``gain`` (1) and ``offset_ohm`` (0)
+    come from a calibration against reference resistors (``tsa-bench calibrate resistance``).
     """
 
     ohm_per_count: float
     sense_current_A: float
     adc_bits: int = 20
+    gain: float = 1.0
+    offset_ohm: float = 0.0
 
     def resistance_ohm(self, counts: Any) -> Any:
-        return self.ohm_per_count * counts
+        return self.offset_ohm + self.gain * self.ohm_per_count * counts
+
+    def counts(self, resistance_ohm: float) -> float:
+        """Inverse map (unrounded), used by the simulated converter."""
+        return (resistance_ohm - self.offset_ohm) / (self.gain * self.ohm_per_count)
 
     @property
     def max_counts(self) -> int:
@@ -187,6 +199,50 @@ def _port(f: _Fields, data: dict, allow_url: bool) -> str | None:
         raise f.fail(("port",), str(exc)) from None
 
 
+def _position_key(exc: BenchConfigError) -> tuple[int, int]:
+    m = re.match(r"^.*?:(\d+):(\d+): ", str(exc))
+    return (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+
+
+def _backend(f: _Fields, data: dict) -> str:
+    backend = f.get(data, ("backend",))
+    if backend not in BACKENDS:
+        raise f.fail(("backend",), f"{backend!r} must be one of {', '.join(BACKENDS)}")
+    return backend
+
+
+def _section_keys(f: _Fields, data: dict, section: str, allowed: tuple[str, ...]) -> dict:
+    values = f.mapping(data, (section,))
+    for key in values:
+        if key not in allowed:
+            raise f.fail((section, key), f"unknown key (allowed: {', '.join(allowed)})")
+    return values
+
+
+def _position(f: _Fields, data: dict) -> PositionCalibration:
+    pos = _section_keys(f, data, "position_sensor", ("mm_per_count", "offset_mm"))
+    mm_per_count = f.number(pos, ("position_sensor", "mm_per_count"), unit="mm/count")
+    if not 1e-9 <= abs(mm_per_count) <= 1e3:  # 1 nm .. 1 m per count
+        raise f.fail(("position_sensor", "mm_per_count"), f"must be 1e-9..1e3 mm/count in magnitude, "
+                                                          f"got {mm_per_count:g}")
+    return PositionCalibration(mm_per_count=mm_per_count,
+                               offset_mm=f.number(pos, ("position_sensor", "offset_mm"), ge=-1e9, le=1e9, unit="mm"))
+
+
+def _resistance(f: _Fields, data: dict) -> ResistanceCalibration:
+    res = _section_keys(f, data, "resistance_sensor", ("sense_current_A", "vref_V", "adc_bits", "gain", "offset_ohm"))
+    current = f.number(res, ("resistance_sensor", "sense_current_A"), gt=0, le=100.0, unit="A")
+    vref = f.number(res, ("resistance_sensor", "vref_V"), gt=0, le=1000.0, unit="V")
+    bits = f.integer(res, ("resistance_sensor", "adc_bits"), 20, lo=2, hi=32)
+    gain = f.number(res, ("resistance_sensor", "gain"), 1.0, ge=1e-3, le=1e3)
+    offset_ohm = f.number(res, ("resistance_sensor", "offset_ohm"), 0.0, ge=-1e6, le=1e6, unit="ohm")
+    if not vref / 2 ** (bits - 1) / current >= 1e-15:  # the calibration must be a usable number
+        raise f.fail(("resistance_sensor",), f"vref_V / 2^(adc_bits-1) / sense_current_A = "
+                                             f"{vref / 2 ** (bits - 1) / current:g} ohm/count is too small")
+    return ResistanceCalibration(ohm_per_count=vref / 2 ** (bits - 1) / current, sense_current_A=current,
+                                 adc_bits=bits, gain=gain, offset_ohm=offset_ohm)
+
+
 def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = False,
                 trust_firmware_dir: bool = False) -> BenchConfig:
     """Parse and validate bench YAML text (module contract); raise BenchConfigError."""
@@ -198,52 +254,40 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
     if not isinstance(data, dict):
         raise BenchConfigError(f"{filename}: a bench file is a mapping of keys (allowed: {', '.join(KNOWN_KEYS)})")
     f = _Fields(doc)
+    errors: list[BenchConfigError] = []
+
+    def take(read, default: Any = None) -> Any:
+        """One section's value, or its error recorded and ``default``: every section is checked."""
+        try:
+            return read()
+        except BenchConfigError as exc:
+            errors.append(exc)
+            return default
+
     for key in data:
         if key not in KNOWN_KEYS:
-            raise f.fail((key,), f"unknown key (allowed: {', '.join(sorted(KNOWN_KEYS))})")
-    backend = f.get(data, ("backend",))
-    if backend not in BACKENDS:
-        raise f.fail(("backend",), f"{backend!r} must be one of {', '.join(BACKENDS)}")
-    steps_per_turn = f.integer(data, ("steps_per_turn",), lo=1, hi=U16_MAX)
-    limits = _limits(f, data, steps_per_turn)
-    pos = f.mapping(data, ("position_sensor",))
-    res = f.mapping(data, ("resistance_sensor",))
-    for section, allowed in (("position_sensor", ("mm_per_count", "offset_mm")),
-                             ("resistance_sensor", ("sense_current_A", "vref_V", "adc_bits"))):
-        for key in data[section]:
-            if key not in allowed:
-                raise f.fail((section, key), f"unknown key (allowed: {', '.join(allowed)})")
-    mm_per_count = f.number(pos, ("position_sensor", "mm_per_count"), unit="mm/count")
-    if not 1e-9 <= abs(mm_per_count) <= 1e3:  # 1 nm .. 1 m per count
-        raise f.fail(("position_sensor", "mm_per_count"), f"must be 1e-9..1e3 mm/count in magnitude, "
-                                                          f"got {mm_per_count:g}")
-    current = f.number(res, ("resistance_sensor", "sense_current_A"), gt=0, le=100.0, unit="A")
-    vref = f.number(res, ("resistance_sensor", "vref_V"), gt=0, le=1000.0, unit="V")
-    bits = f.integer(res, ("resistance_sensor", "adc_bits"), 20, lo=2, hi=32)
-    if not vref / 2 ** (bits - 1) / current >= 1e-15:  # the calibration must be a usable number
-        raise f.fail(("resistance_sensor",), f"vref_V / 2^(adc_bits-1) / sense_current_A = "
-                                             f"{vref / 2 ** (bits - 1) / current:g} ohm/count is too small")
-    bench = BenchConfig(
-        name=f.text(data, ("name",)),
-        backend=backend,
-        port=_port(f, data, allow_url),
-        baud=f.integer(data, ("baud",), 250000, lo=1, hi=100_000_000),
-        steps_per_turn=steps_per_turn,
-        limits=limits,
-        watchdog_s=f.number(data, ("watchdog_s",), 2.0, ge=0.001, le=U16_MAX / 1000, unit="s"),
-        queue_slots=f.integer(data, ("queue_slots",), 16, lo=1, hi=U8_MAX),
-        position=PositionCalibration(mm_per_count=mm_per_count,
-                                     offset_mm=f.number(pos, ("position_sensor", "offset_mm"), ge=-1e9, le=1e9,
-                                                        unit="mm")),
-        resistance=ResistanceCalibration(ohm_per_count=vref / 2 ** (bits - 1) / current, sense_current_A=current,
-                                         adc_bits=bits),
-        ack_timeout_s=f.number(data, ("ack_timeout_s",), 0.25, ge=0.001, le=10.0, unit="s"),
-        boot_timeout_s=f.number(data, ("boot_timeout_s",), 3.0, ge=0.0, le=600.0, unit="s"),
-        plant=f.mapping(data, ("plant",), {}),
-        simavr=f.mapping(data, ("simavr",), {}),
-        source_text=text,
-        path=filename,
+            errors.append(f.fail((key,), f"unknown key (allowed: {', '.join(sorted(KNOWN_KEYS))})"))
+    backend = take(lambda: _backend(f, data))
+    steps_per_turn = take(lambda: f.integer(data, ("steps_per_turn",), lo=1, hi=U16_MAX))
+    limits = take(lambda: _limits(f, data, steps_per_turn)) if steps_per_turn is not None else None
+    position = take(lambda: _position(f, data))
+    resistance = take(lambda: _resistance(f, data))
+    values = dict(
+        name=take(lambda: f.text(data, ("name",))),
+        port=take(lambda: _port(f, data, allow_url)),
+        baud=take(lambda: f.integer(data, ("baud",), 250000, lo=1, hi=100_000_000)),
+        watchdog_s=take(lambda: f.number(data, ("watchdog_s",), 2.0, ge=0.001, le=U16_MAX / 1000, unit="s")),
+        queue_slots=take(lambda: f.integer(data, ("queue_slots",), 16, lo=1, hi=U8_MAX)),
+        ack_timeout_s=take(lambda: f.number(data, ("ack_timeout_s",), 0.25, ge=0.001, le=10.0, unit="s")),
+        boot_timeout_s=take(lambda: f.number(data, ("boot_timeout_s",), 3.0, ge=0.0, le=600.0, unit="s")),
+        plant=take(lambda: f.mapping(data, ("plant",), {}), {}),
+        simavr=take(lambda: f.mapping(data, ("simavr",), {}), {}),
     )
+    take(lambda: check_records(doc, data.get("calibrations")))
+    if errors:
+        raise BenchConfigError("\n".join(str(e) for e in sorted(errors, key=_position_key)))
+    bench = BenchConfig(backend=backend, steps_per_turn=steps_per_turn, limits=limits, position=position,
+                        resistance=resistance, source_text=text, path=filename, **values)
     if bench.backend in ("sim", "simavr") or bench.plant:
         from tsa_bench.bench.plant_check import check_plant  # the simulation, only for simulated benches
 

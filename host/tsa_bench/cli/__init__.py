@@ -1,7 +1,8 @@
 """Command line: the `tsa-bench` group, one module per family of commands.
 
-- :mod:`.experiment`: run, validate, sim-serve, effects
-- :mod:`.data`: info, report, watch, import, export
+- :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
+- :mod:`.data`: info, ls, report, watch, import, export
+- :mod:`.rig`: ports, check, jog, zero, calibrate
 - :mod:`.models`: fit, predict, manipulator
 - :mod:`.diagnose`: diagnose
 - :mod:`.reproduce`: reproduce
@@ -21,13 +22,16 @@ import importlib
 
 import click
 
+from tsa_bench import __version__
+
 # command name -> "module:attribute" inside this package
 COMMANDS: dict[str, str] = {
     "validate": "experiment:validate",
-    "run": "experiment:run",
+    "run": "run:run",
     "sim-serve": "experiment:sim_serve",
     "effects": "experiment:effects",
     "info": "data:info",
+    "ls": "data:ls_cmd",
     "report": "data:report",
     "watch": "data:watch",
     "import": "data:import_cmd",
@@ -37,6 +41,10 @@ COMMANDS: dict[str, str] = {
     "manipulator": "models:manipulator_cmd",
     "diagnose": "diagnose:diagnose",
     "reproduce": "reproduce:reproduce",
+    "ports": "rig:ports",
+    "check": "rig:check",
+    "jog": "rig:jog",
+    "calibrate": "calibrate:calibrate",
 }
 
 
@@ -55,6 +63,6 @@ class LazyGroup(click.Group):
 
 
 @click.group(cls=LazyGroup)
-@click.version_option(package_name="tsa-bench")
+@click.version_option(version=__version__, prog_name="tsa-bench")  # not importlib.metadata: no scan at start
 def main() -> None:
     """tsa-bench: bench acquisition for twisted string actuators."""

@@ -1,4 +1,4 @@
-"""Data commands: `tsa-bench info | report | watch | import | export`.
+"""Data commands: `tsa-bench info | ls | report | watch | import | export`.
 
 Exit codes as in :mod:`tsa_bench.cli`: 0 success; 1 a watched run ended without success
 or was killed; 2 bad input (run file, CSV, options), with a message naming the file and,
@@ -15,30 +15,66 @@ from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, fail
 
 
 @click.command()
-@click.argument("run_file", type=click.Path(dir_okay=False))
-def info(run_file: str) -> None:
-    """Print RUN_FILE's metadata, exit status, segment summary and sample statistics."""
+@click.argument("run_files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+def info(run_files: tuple[str, ...]) -> None:
+    """Print each RUN_FILE's metadata, exit status, segment summary and sample statistics.
+
+    Exit 2 when any of them cannot be read (the others are still shown).
+    """
     from tsa_bench.console.summary import format_run_info
     from tsa_bench.store.inspect import RunFileError, inspect_run
 
-    try:
-        click.echo(format_run_info(inspect_run(run_file)))
-    except RunFileError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
+    code = 0
+    for i, run_file in enumerate(run_files):
+        if i:
+            click.echo("")
+        try:
+            click.echo(format_run_info(inspect_run(run_file)))
+        except RunFileError as exc:
+            click.echo(f"error: {exc}", err=True)
+            code = EXIT_BAD_INPUT
+    sys.exit(code)
+
+
+@click.command("ls")
+@click.argument("folder", type=click.Path(file_okay=False), default="runs", required=False)
+def ls_cmd(folder: str) -> None:
+    """One line per run file in FOLDER (default runs/): status, plan, duration, samples, segments."""
+    from pathlib import Path
+
+    from tsa_bench.console.progress import hms
+    from tsa_bench.store.listing import list_runs
+
+    if not Path(folder).is_dir():
+        fail(f"{folder}: no such folder")
+    rows = list_runs(folder)
+    if not rows:
+        click.echo(f"no run files (*.h5) in {folder}")
+        return
+    click.echo(f"{'status':<10} {'duration':>9} {'samples':>9} {'segments':>11}  {'plan':<28} file")
+    for r in rows:
+        if r.problem and r.status in ("?", "recording"):
+            click.echo(f"{r.status:<10} {'':>9} {'':>9} {'':>11}  {'':<28} {r.path.name}  ({r.problem})")
+            continue
+        click.echo(f"{r.status:<10} {hms(r.duration_s):>9} {r.samples:>9} {r.segments:>11}  {r.plan:<28} "
+                   f"{r.path.name}" + (f"  ({r.link})" if r.link else ""))
 
 
 @click.command()
 @click.argument("run_file", type=click.Path(dir_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Directory for the figures and index.html (default: RUN_report next to the run file).")
-def report(run_file: str, out_dir: str | None) -> None:
-    """Write PNG figures chosen by RUN_FILE's content and an index.html showing them."""
+@click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]), default="png", show_default=True,
+              help="Figure file format.")
+@click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
+              help="Resolution of raster figures (dots per inch).")
+def report(run_file: str, out_dir: str | None, fmt: str, dpi: int) -> None:
+    """Write figures chosen by RUN_FILE's content and an index.html showing them."""
     from tsa_bench.report.run_report import write_run_report
     from tsa_bench.store import RunFileError
 
     try:
-        rep = write_run_report(run_file, out_dir)
+        rep = write_run_report(run_file, out_dir, fmt=fmt, dpi=dpi)
     except RunFileError as exc:
         fail(str(exc))
     except OSError as exc:

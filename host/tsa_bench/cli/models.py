@@ -103,19 +103,21 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
 @click.command("predict")
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.argument("run", type=click.Path(dir_okay=False))
-@click.option("--write-prediction", is_flag=True,
-              help="Write the prediction into RUN as /samples/predicted_<output> (beside the measurement).")
-def predict_cmd(model_file: str, run: str, write_prediction: bool) -> None:
-    """Print the metrics of MODEL_FILE on RUN; optionally store the prediction in the run file."""
-    import h5py
-
+@click.option("--write-prediction", "out", type=click.Path(dir_okay=False), default=None, metavar="OUT.h5",
+              help="Write a copy of RUN with the prediction as /samples/predicted_<output> to OUT.h5 "
+                   "(RUN itself is never changed; OUT.h5 is never overwritten).")
+def predict_cmd(model_file: str, run: str, out: str | None) -> None:
+    """Print the metrics of MODEL_FILE on RUN; optionally write the prediction beside the measurement."""
     from tsa_bench.models.fitting import FitError, evaluate
     from tsa_bench.models.saved import ModelFileError, load_model_file
+    from tsa_bench.store.derived import DerivedFileError, write_with_column
 
     try:
         saved = load_model_file(model_file)
     except ModelFileError as exc:
         _fail(str(exc))
+    if out is not None and Path(out).exists():
+        _fail(f"{out} already exists; choose another --write-prediction file (nothing is overwritten)")
     data = _read([run])[0]
     try:
         pred, metrics = evaluate(saved, data)
@@ -126,19 +128,13 @@ def predict_cmd(model_file: str, run: str, write_prediction: bool) -> None:
     _console().print(_metrics_table(f"{saved.model} ({Path(model_file).name}): "
                                    f"{saved.input['column']} -> {saved.output['column']}",
                                    [("prediction", run, metrics)]))
-    if write_prediction:
+    if out is not None:
         name = f"predicted_{saved.output['column']}"
         try:
-            with h5py.File(run, "a") as f:
-                g = f["samples"]
-                if name in g:
-                    del g[name]
-                ds = g.create_dataset(name, data=pred)
-                ds.attrs["units"] = saved.output["unit"]
-                ds.attrs["model_file"] = str(model_file)
-        except (OSError, RuntimeError, ValueError) as exc:
-            _fail(f"{run}: cannot write the prediction into the run file ({exc})", EXIT_FAILED)
-        click.echo(f"prediction written to {run}:/samples/{name}")
+            write_with_column(run, out, name, pred, saved.output["unit"], {"model_file": str(model_file)})
+        except DerivedFileError as exc:
+            _fail(str(exc), EXIT_FAILED if "cannot write" in str(exc) else EXIT_BAD_INPUT)
+        click.echo(f"prediction written to {out}:/samples/{name} (a copy of {run})")
 
 
 #: The manipulator file's sections and keys: (low, high) bounds, "int" for whole numbers.

@@ -41,7 +41,8 @@ class ProgressDisplay:
         self.t = 0.0
         self.estimate = float("nan")
         self.length = float("nan")
-        self.resistance = float("nan")
+        self.resistance = float("nan")   # the latest sample's: NaN = not measured
+        self.heater_V = 0.0
         self.samples = 0
         self.notes = 0
         self._wall0 = time.monotonic()
@@ -58,7 +59,7 @@ class ProgressDisplay:
         text.append("█" * filled + "░" * (bar_len - filled), style="cyan")
         text.append(f" segment {self.done}/{self.n_segments}{cycle} {self.current}  ")
         text.append(f"device {hms(self.t)} / ~{hms(self.estimate)}  ETA {hms(eta)}  ")
-        text.append(f"L {self.length:7.2f} mm  R {self.resistance:8.4f} ohm  ", style="bold")
+        text.append(f"L {self.length:7.2f} mm  R {self.resistance_text()}  ", style="bold")
         text.append(f"{self.samples} samples")
         return text
 
@@ -75,10 +76,14 @@ class ProgressDisplay:
         self.samples += len(block)
         self.t = float(c["t"][-1])
         self.length = float(c["length"][-1])
-        r = c["resistance"]
-        measured = r[r == r]
-        if len(measured):
-            self.resistance = float(measured[-1])
+        self.resistance = float(c["resistance"][-1])  # never a stale value from before heating
+        self.heater_V = float(c["heater_voltage"][-1])
+
+    def resistance_text(self) -> str:
+        """The latest resistance, or why there is none."""
+        if math.isfinite(self.resistance):
+            return f"{self.resistance:8.4f} ohm"
+        return "not measured (heater on)" if self.heater_V > 0 else "not measured"
 
     def on_segment(self, s: SegmentRecord) -> None:
         self.done = s.index + 1

@@ -54,7 +54,7 @@ class WatchState:
         self.n_segments = n_segments
         self.samples = 0
         self.last: np.void | None = None
-        self.resistance = float("nan")  # latest measured (NaN while the heater is on)
+        self.resistance = float("nan")  # the latest sample's (NaN: not measured, e.g. while the heater is on)
         self.lengths: collections.deque = collections.deque(maxlen=history)
         self.resistances: collections.deque = collections.deque(maxlen=history)
         self._arrivals: collections.deque = collections.deque()  # (wall time, count)
@@ -66,9 +66,7 @@ class WatchState:
             return
         self.samples += len(rec)
         self.last = rec[-1]
-        r = rec["resistance"][np.isfinite(rec["resistance"])]
-        if len(r):
-            self.resistance = float(r[-1])
+        self.resistance = float(rec["resistance"][-1])  # never a stale value from before heating
         step = max(1, len(rec) // 20)
         self.lengths.extend(rec["length"][::-1][::step][::-1].tolist())
         self.resistances.extend(rec["resistance"][::-1][::step][::-1].tolist())
@@ -83,13 +81,20 @@ class WatchState:
         n = sum(k for _, k in self._arrivals)
         return n / window_s if n else 0.0
 
+    def resistance_text(self, unit: bool = True) -> str:
+        """The latest resistance, or why there is none ("not measured (heater on)")."""
+        if math.isfinite(self.resistance):
+            return f"{self.resistance:.4f}" + (" ohm" if unit else "")
+        heating = self.last is not None and float(self.last["heater_voltage"]) > 0
+        return "not measured (heater on)" if heating else "not measured"
+
     def line(self) -> str:
         if self.last is None:
             return "waiting for the first sample ..."
         r = self.last
         seg = int(r["segment"])
         return (f"t={r['t']:.2f} s  turns={r['turns']:.3f} turn  length={r['length']:.2f} mm  "
-                f"resistance={self.resistance:.4f} ohm  heater={r['heater_voltage']:.2f} V  load={r['load']:.3f} N  "
+                f"resistance={self.resistance_text()}  heater={r['heater_voltage']:.2f} V  load={r['load']:.3f} N  "
                 f"segment {seg + 1}/{self.n_segments}  samples={self.samples}  rate={self.rate():.1f}/s")
 
     def table(self, title: str) -> Table:
@@ -100,7 +105,8 @@ class WatchState:
             tab.add_column(col, justify="right", no_wrap=True)
         if self.last is not None:
             r = self.last
-            tab.add_row(f"{r['t']:.2f}", f"{r['turns']:.3f}", f"{r['length']:.2f}", f"{self.resistance:.4f}",
+            tab.add_row(f"{r['t']:.2f}", f"{r['turns']:.3f}", f"{r['length']:.2f}",
+                        self.resistance_text(unit=False),
                         f"{r['heater_voltage']:.2f}", f"{r['load']:.3f}", f"{int(r['segment']) + 1}/{self.n_segments}",
                         str(self.samples), f"{self.rate():.1f}")
         tab.caption = (f"length     {sparkline(list(self.lengths))}\n"

@@ -9,7 +9,7 @@ Typical use::
     for segment in plan.segments: ...
 """
 
-from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, SetHeater, SetSampling
+from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle
 from tsa_bench.plan.errors import PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.loader import DEFAULT_SAMPLING_PERIOD_S, load_plan, load_plan_text
@@ -31,6 +31,7 @@ __all__ = [
     "Segment",
     "SetHeater",
     "SetSampling",
+    "Settle",
     "format_duration",
     "format_summary",
     "load_plan",

@@ -40,6 +40,30 @@ class Hold:
 
 
 @dataclass(frozen=True)
+class Settle:
+    """Hold until the TSA has settled: end once, over the last ``window_s`` seconds, the
+    fitted slopes satisfy |dR/dt| <= ``max_dR_dt_ohm_per_s`` and |dL/dt| <=
+    ``max_dL_dt_mm_per_s`` (a threshold of None is not judged), but not before
+    ``min_duration_s`` and never after ``max_duration_s`` (s)."""
+
+    max_duration_s: float
+    window_s: float
+    min_duration_s: float
+    max_dR_dt_ohm_per_s: float | None
+    max_dL_dt_mm_per_s: float | None
+    kind: ClassVar[str] = "settle"
+
+    def params(self) -> dict[str, Any]:
+        return {
+            "max_duration_s": self.max_duration_s,
+            "window_s": self.window_s,
+            "min_duration_s": self.min_duration_s,
+            "max_dR_dt_ohm_per_s": self.max_dR_dt_ohm_per_s,
+            "max_dL_dt_mm_per_s": self.max_dL_dt_mm_per_s,
+        }
+
+
+@dataclass(frozen=True)
 class SetHeater:
     """Set the Joule-heating voltage across the strings to ``voltage_V`` (>= 0)."""
 
@@ -73,10 +97,10 @@ class Prompt:
         return {"text": self.text, "load_g": self.load_g}
 
 
-Action: TypeAlias = Move | Hold | SetHeater | SetSampling | Prompt
+Action: TypeAlias = Move | Hold | Settle | SetHeater | SetSampling | Prompt
 
 #: All segment kinds, in a stable display order.
-KINDS: tuple[str, ...] = ("move", "hold", "heater", "sampling", "prompt")
+KINDS: tuple[str, ...] = ("move", "hold", "settle", "heater", "sampling", "prompt")
 
 
 @dataclass(frozen=True)
@@ -95,7 +119,7 @@ class Segment:
 
     @property
     def kind(self) -> str:
-        """``"move" | "hold" | "heater" | "sampling" | "prompt"``."""
+        """``"move" | "hold" | "settle" | "heater" | "sampling" | "prompt"``."""
         return self.action.kind
 
     def params(self) -> dict[str, Any]:

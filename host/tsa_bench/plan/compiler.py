@@ -17,7 +17,7 @@ from yaml import Node
 from tsa_bench.plan.actions import Move, Segment
 from tsa_bench.plan.errors import ErrorSink
 from tsa_bench.plan.limits import Limits
-from tsa_bench.plan.steps import ActionOp, LostTwistOp, MoveOp, Op, RepeatOp
+from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
 
 #: Upper bound on the expanded plan size (protects memory against e.g. nested huge counts).
 MAX_SEGMENTS = 1_000_000
@@ -31,14 +31,17 @@ def expanded_size(ops: Sequence[Op]) -> int:
     for op in ops:
         if isinstance(op, RepeatOp):
             total += (op.count or 1) * expanded_size(op.body)
+        elif isinstance(op, ForEachOp):
+            total += sum(expanded_size(body) for body in op.bodies)
         elif not isinstance(op, LostTwistOp):
             total += 1
     return total
 
 
 def outer_cycles(ops: Sequence[Op]) -> int:
-    """Total iterations of the top-level (outermost) repeat blocks."""
-    return sum(op.count or 0 for op in ops if isinstance(op, RepeatOp))
+    """Total iterations of the top-level (outermost) repeat and for_each blocks."""
+    return sum(op.count or 0 for op in ops if isinstance(op, RepeatOp)) + sum(
+        len(op.bodies) for op in ops if isinstance(op, ForEachOp))
 
 
 @dataclass
@@ -57,7 +60,7 @@ class _Compiler:
     position_turns: float | None = 0.0   # None: unknown after an invalid motion step
     violations: dict[int, _TwistViolation] = field(default_factory=dict)
 
-    def run(self, ops: Sequence[Op], cycle: int | None, trail: tuple[tuple[RepeatOp, int], ...]) -> None:
+    def run(self, ops: Sequence[Op], cycle: int | None, trail: tuple[tuple[RepeatOp | ForEachOp, int], ...]) -> None:
         segments = self.segments
         for op in ops:
             if type(op) is ActionOp:
@@ -79,10 +82,13 @@ class _Compiler:
                     self.run(op.body, c, (*trail, (op, c)))
                 if op.count is None:
                     self.position_turns = None
+            elif type(op) is ForEachOp:
+                for c, body in enumerate(op.bodies):
+                    self.run(body, c, (*trail, (op, c)))
             else:  # LostTwistOp
                 self.position_turns = None
 
-    def _check_twist(self, op: MoveOp, target: float, trail: tuple[tuple[RepeatOp, int], ...]) -> None:
+    def _check_twist(self, op: MoveOp, target: float, trail: tuple[tuple[RepeatOp | ForEachOp, int], ...]) -> None:
         hi, lo = self.limits.max_twist_turns, self.limits.min_twist_turns
         if (hi is None or target <= hi) and (lo is None or target >= lo):
             return
@@ -90,7 +96,8 @@ class _Compiler:
         if seen is not None:
             seen.occurrences += 1
             return
-        where = " > ".join(f"cycle {c} of the repeat at {rep.source}" for rep, c in trail)
+        where = " > ".join(f"cycle {c} of the {'repeat' if isinstance(rep, RepeatOp) else 'for_each'} at "
+                           f"{rep.source}" for rep, c in trail)
         self.violations[id(op)] = _TwistViolation(op, target, where)
 
     def report(self) -> None:

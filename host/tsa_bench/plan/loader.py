@@ -3,8 +3,11 @@
 Top-level keys: ``name`` (required), ``description``, ``metadata`` (free-form mapping),
 ``load_g`` (initial hanging mass, 0 .. 4294967.295 g), ``sampling_period_s`` (0.001 .. 60 s, default
 0.1), ``limits`` (any subset of :class:`Limits` fields; may only tighten the bench),
-``defaults`` (``rate_turns_per_s``, ``accel_turns_per_s2`` for moves lacking them) and
-``steps`` (required, non-empty; see :mod:`tsa_bench.plan.steps`).
+``defaults`` (``rate_turns_per_s``, ``accel_turns_per_s2`` for moves lacking them; they may
+use variables),
+``variables`` (name: number or text, used as ``$name`` in steps; see
+:mod:`tsa_bench.plan.variables`) and ``steps`` (required, non-empty; see
+:mod:`tsa_bench.plan.steps`).
 
 Contract: every problem found is raised together as one :class:`PlanErrors`; positions
 come from the YAML node marks.
@@ -24,13 +27,14 @@ from tsa_bench.plan.errors import ErrorSink, PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits, loosening_problem
 from tsa_bench.plan.model import Plan
 from tsa_bench.plan.steps import (
-    MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser,
+    MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser, scalar_value,
 )
+from tsa_bench.plan.variables import NAME, UnknownVariable, Value, substitute
 from tsa_bench.plan.yamlnodes import NULL_TAG, Reader
 
 DEFAULT_SAMPLING_PERIOD_S = 0.1
 TOP_LEVEL_KEYS: tuple[str, ...] = (
-    "name", "description", "metadata", "load_g", "sampling_period_s", "limits", "defaults", "steps",
+    "name", "description", "metadata", "load_g", "sampling_period_s", "limits", "defaults", "variables", "steps",
 )
 _REQUIRED_KEYS = ("name", "steps")
 _UNIT = {
@@ -99,12 +103,13 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
         period_s = reader.number(top["sampling_period_s"], "sampling_period_s", "s",
                                  ge=MIN_SAMPLING_PERIOD_S, le=MAX_SAMPLING_PERIOD_S)
     limits = _protocol_limits(reader, top.get("limits"), bench)
-    defaults = _defaults(reader, top.get("defaults"), limits)
+    variables = _variables(reader, top.get("variables"))
+    defaults = _defaults(reader, _substituted(reader, top.get("defaults"), variables, "defaults"), limits)
 
     segments = ()
     cycles = 0
     if "steps" in top:
-        ops = StepParser(reader, limits, defaults, filename).parse_steps(top["steps"], "steps")
+        ops = StepParser(reader, limits, defaults, filename, variables).parse_steps(top["steps"], "steps")
         segments = compile_ops(ops, limits, sink, top["steps"])
         cycles = outer_cycles(ops)
     sink.raise_if_any()
@@ -121,6 +126,37 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
         metadata=metadata,
         cycles=cycles,
     )
+
+
+def _substituted(reader: Reader, node: Node | None, variables: dict[str, Value], field: str) -> Node | None:
+    if node is None:
+        return None
+    try:
+        return substitute(node, variables)
+    except UnknownVariable as exc:
+        reader.sink.add(exc.node, field, str(exc))
+        return None
+
+
+def _variables(reader: Reader, node: Node | None) -> dict[str, Value]:
+    if node is None or node.tag == NULL_TAG:
+        return {}
+    out: dict[str, Value] = {}
+    if not isinstance(node, MappingNode):
+        reader.sink.add(node, "variables", "expected a mapping of name: value", "name: number or text")
+        return out
+    names = [k.value for k, _ in node.value if isinstance(k, yaml.ScalarNode)]
+    fields = reader.mapping(node, "variables", names) or {}
+    key_nodes = {k.value: k for k, _ in node.value if isinstance(k, yaml.ScalarNode)}
+    for name, value_node in fields.items():
+        if not NAME.match(name):
+            reader.sink.add(key_nodes[name], f"variables.{name}", f"{name!r} is not a variable name",
+                            "letters, digits and _, not starting with a digit")
+            continue
+        value = scalar_value(reader, value_node, f"variables.{name}")
+        if value is not None:
+            out[name] = value
+    return out
 
 
 def _metadata(reader: Reader, node: Node | None) -> dict[str, Any]:

@@ -2,7 +2,8 @@
 
 Units: turns, V, s, g as in :mod:`tsa_bench.plan.actions`. Summary conventions: the run
 starts at 0 turns with the heater at 0 V, so both ranges include 0; move durations are
-trapezoidal-profile estimates; prompts wait for the operator and count 0 s.
+trapezoidal-profile estimates; prompts wait for the operator and count 0 s; a
+``hold_until_settled`` counts its maximum duration (the estimate is an upper bound).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tsa_bench.motion import TrapezoidProfile
-from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling
+from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle
 from tsa_bench.plan.limits import Limits
 
 
@@ -76,6 +77,8 @@ class Plan:
                 twist_lo, twist_hi = min(twist_lo, position), max(twist_hi, position)
             elif isinstance(action, Hold):
                 hold_s += action.duration_s
+            elif isinstance(action, Settle):
+                hold_s += action.max_duration_s
             elif isinstance(action, SetHeater):
                 voltage = action.voltage_V
                 volt_lo, volt_hi = min(volt_lo, voltage), max(volt_hi, voltage)

@@ -29,6 +29,11 @@ def describe_segment(seg: Segment) -> str:
         "move": lambda: f"target {a['target_turns']:g} turns @ {a['rate_turns_per_s']:g} turns/s, "
                         f"{a['accel_turns_per_s2']:g} turns/s^2",
         "hold": lambda: f"{a['duration_s']:g} s",
+        "settle": lambda: f"until settled over {a['window_s']:g} s"
+                          + "".join(f", {lab} <= {a[k]:g} {unit}" for k, lab, unit in
+                                    (("max_dR_dt_ohm_per_s", "|dR/dt|", "ohm/s"),
+                                     ("max_dL_dt_mm_per_s", "|dL/dt|", "mm/s")) if a[k] is not None)
+                          + f"; {a['min_duration_s']:g} .. {a['max_duration_s']:g} s",
         "heater": lambda: f"{a['voltage_V']:g} V",
         "sampling": lambda: f"period {a['period_s']:g} s",
         "prompt": lambda: repr(a["text"]) + ("" if a["load_g"] is None else f", load {a['load_g']:g} g"),
@@ -55,7 +60,8 @@ def format_summary(plan: Plan, max_listed: int = 12) -> str:
         f"Segments:   {s.segment_count:,} ({per_kind})",
         f"Duration:   {format_duration(s.duration_s)} estimated "
         f"(moves {format_duration(s.move_duration_s)}, holds {format_duration(s.hold_duration_s)}; "
-        "operator prompts not included)",
+        "operator prompts not included"
+        + (", settle holds at their maximum)" if s.counts_by_kind.get("settle") else ")"),
         f"Twist:      {s.twist_range_turns[0]:g} .. {s.twist_range_turns[1]:g} turns "
         f"(ends at {s.final_twist_turns:g})",
         f"Heater:     {s.voltage_range_V[0]:g} .. {s.voltage_range_V[1]:g} V (ends at {s.final_voltage_V:g})",

@@ -12,7 +12,17 @@ prompt              ``text``, optional ``load_g`` (new hanging mass, 0 .. 429496
 rotation_sequence   ``targets_turns`` (absolute), ``hold_s`` (>= 0, after each), optional rate/accel
 voltage_steps       ``voltages_V``, ``hold_s`` (>= 0, after each voltage)
 repeat              ``count`` (integer >= 1), ``steps`` (nestable)
+hold_until_settled  ``max_duration_s`` (> 0, at most 7 days), optional ``window_s`` (default 30,
+                    at most max_duration_s), ``min_duration_s`` (default window_s),
+                    ``max_dR_dt_ohm_per_s``, ``max_dL_dt_mm_per_s`` (> 0; at least one)
+for_each            ``variable`` (a name), ``values`` (a non-empty list of numbers or texts),
+                    ``steps``: the steps once per value, with ``$variable`` set to it (nestable)
 ==================  =====================================================================
+
+Variables (:mod:`tsa_bench.plan.variables`): any value inside a step may be ``$name``
+(typed) or hold ``$name`` in text; names come from the top-level ``variables:`` and
+from enclosing ``for_each`` loops. A ``for_each`` counts as a repeat for ``cycle``
+(the value's 0-based index) and for the nesting limit.
 
 Moves lacking rate/accel take them from the protocol ``defaults:``. Static checks
 (types, signs, rate/accel/voltage limits) happen here; twist targets are checked when
@@ -28,9 +38,12 @@ from typing import TypeAlias
 
 from yaml import MappingNode, Node, ScalarNode
 
-from tsa_bench.plan.actions import Action, Hold, Prompt, SetHeater, SetSampling
+from tsa_bench.plan.actions import Action, Hold, Prompt, SetHeater, SetSampling, Settle
 from tsa_bench.plan.limits import Limits
-from tsa_bench.plan.yamlnodes import NULL_TAG, STR_TAG, Reader, describe
+from tsa_bench.plan.variables import NAME, UnknownVariable, Value, substitute
+from tsa_bench.plan.yamlnodes import (
+    BOOL_TAG, EXPONENT_FLOAT, FLOAT_TAG, INT_TAG, NULL_TAG, STR_TAG, Reader, describe,
+)
 
 MIN_SAMPLING_PERIOD_S = 0.001
 MAX_SAMPLING_PERIOD_S = 60.0
@@ -39,13 +52,19 @@ MAX_REPEAT_DEPTH = 8
 MAX_HOLD_S = 7 * 24 * 3600.0
 #: Largest hanging mass (g): what a bench command carries (SIM_SET_LOAD, u32 milligrams).
 MAX_LOAD_G = (2**32 - 1) / 1000
+#: Default slope window of hold_until_settled (s).
+DEFAULT_SETTLE_WINDOW_S = 30.0
+#: Most values one for_each may list, and most steps all loops together may expand to
+#: while parsing (each value parses its body once).
+MAX_FOR_EACH_VALUES = 100_000
+MAX_PARSED_STEPS = 100_000
 
 STEP_KINDS: tuple[str, ...] = (
     "move_to", "move_by", "hold", "heater", "sampling", "prompt",
-    "rotation_sequence", "voltage_steps", "repeat",
+    "rotation_sequence", "voltage_steps", "repeat", "hold_until_settled", "for_each",
 )
 _MOTION_KEYS = ("rate_turns_per_s", "accel_turns_per_s2")
-_MOVING_KINDS = frozenset({"move_to", "move_by", "rotation_sequence", "repeat"})
+_MOVING_KINDS = frozenset({"move_to", "move_by", "rotation_sequence", "repeat", "for_each"})
 # Stand-in rate/accel for a move whose own rate/accel was invalid: its target is still
 # range-checked, and a protocol with errors never becomes a Plan, so it is never used.
 _PLACEHOLDER_MOTION = (1.0, 1.0)
@@ -82,12 +101,20 @@ class RepeatOp:
 
 
 @dataclass(frozen=True, eq=False)
+class ForEachOp:
+    """One body per value of a ``for_each``, run in order (iteration i = cycle i)."""
+
+    bodies: tuple[tuple[Op, ...], ...]
+    source: str
+
+
+@dataclass(frozen=True, eq=False)
 class LostTwistOp:
     """Stands for an invalid motion step: the twist after it is unknown, so later
     relative moves are not range-checked (avoids follow-on errors)."""
 
 
-Op: TypeAlias = MoveOp | ActionOp | RepeatOp | LostTwistOp
+Op: TypeAlias = MoveOp | ActionOp | RepeatOp | ForEachOp | LostTwistOp
 
 
 @dataclass(frozen=True)
@@ -103,11 +130,15 @@ class MotionDefaults:
 class StepParser:
     """Turns step nodes into :data:`Op` s, reporting problems through ``reader``."""
 
-    def __init__(self, reader: Reader, limits: Limits, defaults: MotionDefaults, filename: str) -> None:
+    def __init__(self, reader: Reader, limits: Limits, defaults: MotionDefaults, filename: str,
+                 variables: dict[str, Value] | None = None) -> None:
         self.reader = reader
         self.limits = limits
         self.defaults = defaults
         self.basename = PurePath(filename).name if not filename.startswith("<") else filename
+        self.scope: dict[str, Value] = dict(variables or {})
+        self._parsed = 0
+        self._too_many_reported = False
         self._handlers: dict[str, Callable[[Node, str, str, int], list[Op] | None]] = {
             "move_to": self._move_to,
             "move_by": self._move_by,
@@ -118,6 +149,8 @@ class StepParser:
             "rotation_sequence": self._rotation_sequence,
             "voltage_steps": self._voltage_steps,
             "repeat": self._repeat,
+            "hold_until_settled": self._hold_until_settled,
+            "for_each": self._for_each,
         }
 
     # ---------------------------------------------------------------- structure
@@ -149,6 +182,19 @@ class StepParser:
             shown = repr(kind) if kind is not None else describe(key_node)
             self.reader.sink.add(key_node, field, f"unknown step kind {shown}", kinds)
             return [LostTwistOp()]
+        self._parsed += 1
+        if self._parsed > MAX_PARSED_STEPS:
+            if not self._too_many_reported:
+                self._too_many_reported = True
+                self.reader.sink.add(node, field, f"for_each loops expand to more than {MAX_PARSED_STEPS:,} steps",
+                                     "fewer values or smaller loop bodies")
+            return [LostTwistOp()]
+        if kind != "for_each":  # a loop substitutes its values itself, its body step by step
+            try:
+                value_node = substitute(value_node, self.scope)
+            except UnknownVariable as exc:
+                self.reader.sink.add(exc.node, field, str(exc))
+                return [LostTwistOp()] if kind in _MOVING_KINDS else []
         source = f"{self.basename}:{node.start_mark.line + 1}"
         ops = self._handlers[kind](value_node, f"{field}.{kind}", source, depth)
         if ops is None:
@@ -291,3 +337,130 @@ class StepParser:
         count = self.reader.integer(fields["count"], f"{field}.count", ge=1) if "count" in fields else None
         body = self.parse_steps(fields["steps"], f"{field}.steps", depth + 1) if "steps" in fields else []
         return [RepeatOp(count, tuple(body), source)]
+
+    def _hold_until_settled(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        keys = ("max_duration_s", "window_s", "min_duration_s", "max_dR_dt_ohm_per_s", "max_dL_dt_mm_per_s")
+        fields = self.reader.mapping(node, field, keys, required=("max_duration_s",))
+        if not fields or "max_duration_s" not in fields:
+            return None
+        r = self.reader
+        longest = r.number(fields["max_duration_s"], f"{field}.max_duration_s", "s", gt=0, le=MAX_HOLD_S,
+                           le_name="7 days")
+        window = DEFAULT_SETTLE_WINDOW_S if longest is None else min(DEFAULT_SETTLE_WINDOW_S, longest)
+        if "window_s" in fields:
+            window = r.number(fields["window_s"], f"{field}.window_s", "s", gt=0,
+                              le=longest if longest is not None else MAX_HOLD_S, le_name="max_duration_s")
+        shortest = window
+        if "min_duration_s" in fields:
+            shortest = r.number(fields["min_duration_s"], f"{field}.min_duration_s", "s", ge=0,
+                                le=longest if longest is not None else MAX_HOLD_S, le_name="max_duration_s")
+        thresholds = {}
+        for key, unit in (("max_dR_dt_ohm_per_s", "ohm/s"), ("max_dL_dt_mm_per_s", "mm/s")):
+            thresholds[key] = None
+            if key in fields and fields[key].tag != NULL_TAG:
+                thresholds[key] = r.number(fields[key], f"{field}.{key}", unit, gt=0)
+                if thresholds[key] is None:
+                    return None
+        if all(v is None for v in thresholds.values()):
+            r.sink.add(node, field, "give at least one settling threshold",
+                       "max_dR_dt_ohm_per_s and/or max_dL_dt_mm_per_s")
+            return None
+        if longest is None or window is None or shortest is None:
+            return None
+        return [ActionOp(Settle(longest, window, shortest, thresholds["max_dR_dt_ohm_per_s"],
+                                thresholds["max_dL_dt_mm_per_s"]), source)]
+
+    def _for_each(self, node: Node, field: str, source: str, depth: int) -> list[Op] | None:
+        fields = self.reader.mapping(node, field, ("variable", "values", "steps"),
+                                     required=("variable", "values", "steps"))
+        if fields is None:
+            return None
+        if depth >= MAX_REPEAT_DEPTH:
+            self.reader.sink.add(node, field, f"loops nested more than {MAX_REPEAT_DEPTH} deep",
+                                 f"at most {MAX_REPEAT_DEPTH} nested repeat/for_each blocks")
+            return None
+        name = self.reader.string(fields["variable"], f"{field}.variable") if "variable" in fields else None
+        if name is not None and not NAME.match(name):
+            self.reader.sink.add(fields["variable"], f"{field}.variable", f"{name!r} is not a variable name",
+                                 "letters, digits and _, not starting with a digit")
+            name = None
+        values = self._loop_values(fields, field) if "values" in fields else None
+        if name is None or values is None or "steps" not in fields:
+            return None
+        cost = len(values) * _steps_in(fields["steps"])
+        if self._parsed + cost > MAX_PARSED_STEPS:  # refused before parsing: a loop bomb costs nothing
+            self._too_many_reported = True
+            self.reader.sink.add(node, field, f"for_each loops expand to more than {MAX_PARSED_STEPS:,} steps "
+                                              f"(here about {self._parsed + cost:,})",
+                                 "fewer values or smaller loop bodies")
+            return None
+        outer = self.scope
+        bodies = []
+        try:
+            for value in values:
+                self.scope = {**outer, name: value}
+                bodies.append(tuple(self.parse_steps(fields["steps"], f"{field}.steps", depth + 1)))
+        finally:
+            self.scope = outer
+        return [ForEachOp(tuple(bodies), source)]
+
+    def _loop_values(self, fields: dict[str, Node], field: str) -> list[Value] | None:
+        try:
+            node = substitute(fields["values"], self.scope)
+        except UnknownVariable as exc:
+            self.reader.sink.add(exc.node, f"{field}.values", str(exc))
+            return None
+        items = self.reader.sequence(node, f"{field}.values", "values")
+        if items is None:
+            return None
+        if len(items) > MAX_FOR_EACH_VALUES:
+            self.reader.sink.add(node, f"{field}.values", f"{len(items):,} values",
+                                 f"at most {MAX_FOR_EACH_VALUES:,}")
+            return None
+        out: list[Value] = []
+        for j, item in enumerate(items):
+            value = scalar_value(self.reader, item, f"{field}.values[{j}]")
+            if value is None:
+                return None
+            out.append(value)
+        return out
+
+
+def _steps_in(node: Node) -> int:
+    """Step nodes a steps list parses to, counting nested loops' values (an estimate from the
+    nodes alone, before any substitution)."""
+    from yaml import SequenceNode
+
+    if not isinstance(node, SequenceNode):
+        return 1
+    total = 0
+    for step in node.value:
+        total += 1
+        if isinstance(step, MappingNode) and len(step.value) == 1 and isinstance(step.value[0][1], MappingNode):
+            kind = step.value[0][0].value if isinstance(step.value[0][0], ScalarNode) else ""
+            inner = {k.value: v for k, v in step.value[0][1].value if isinstance(k, ScalarNode)}
+            if kind in ("repeat", "for_each") and "steps" in inner:
+                times = len(inner["values"].value) if kind == "for_each" and isinstance(
+                    inner.get("values"), SequenceNode) else 1
+                total += times * _steps_in(inner["steps"])
+    return total
+
+
+def scalar_value(reader: Reader, node: Node, field: str) -> Value | None:
+    """A variable's value: a finite number, a boolean or a non-empty text (else an error)."""
+    if isinstance(node, ScalarNode) and node.tag in (INT_TAG, FLOAT_TAG):
+        number = reader.raw_number(node, field)
+        if number is None:
+            return None
+        return int(number) if node.tag == INT_TAG and number.is_integer() else number
+    if isinstance(node, ScalarNode) and node.tag == BOOL_TAG:
+        return reader.plain_data(node, field)
+    if isinstance(node, ScalarNode) and node.tag == STR_TAG:
+        exp = reader.raw_number(node, field) if _looks_numeric(node) else None
+        return exp if exp is not None else node.value
+    reader.sink.add(node, field, f"expected a number or a text, got {describe(node)}", "a number or a text")
+    return None
+
+
+def _looks_numeric(node: ScalarNode) -> bool:
+    return node.style is None and bool(EXPONENT_FLOAT.match(node.value))

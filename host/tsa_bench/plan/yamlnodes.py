@@ -26,6 +26,7 @@ STR_TAG = "tag:yaml.org,2002:str"
 # YAML 1.1 (PyYAML) resolves an unquoted "1e-3" to a string because it lacks a dot;
 # a reader would call it a number, so plain scalars of that shape are accepted as floats.
 _EXPONENT_FLOAT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+EXPONENT_FLOAT = _EXPONENT_FLOAT
 _CONSTRUCT = SafeConstructor()
 _MAX_DEPTH = 32
 

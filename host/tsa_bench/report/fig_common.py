@@ -16,9 +16,13 @@ import numpy as np
 
 from tsa_bench.store import RunData
 
-DPI = 100
+DPI = 150
+#: File formats a figure may be written in (matplotlib picks the backend from the suffix).
+FORMATS = ("png", "pdf", "svg")
 #: More boundaries than this and lines would hide the data; repeat blocks are shaded instead.
 MAX_BOUNDARIES = 60
+#: More samples than this per panel and a line is drawn as a band (min..max per pixel column).
+ENVELOPE_BINS = 1500
 TWIST_COLOR, UNTWIST_COLOR, HEAT_COLOR = "tab:blue", "tab:red", "tab:orange"
 G0 = 9.80665  # m/s^2, loads in N shown as grams (the thesis quotes masses)
 
@@ -73,7 +77,45 @@ def finite_any_col(a) -> bool:
 
 
 def grams(load_n: float) -> str:
-    return "load undeclared" if not np.isfinite(load_n) else f"{load_n / G0 * 1000:.0f} g"
+    """A load as every figure labels it: the hanging mass and its weight, ``450 g (4.41 N)``."""
+    return "load undeclared" if not np.isfinite(load_n) else f"{load_n / G0 * 1000:.0f} g ({load_n:.3g} N)"
+
+
+def save(fig, path: Path, dpi: int = DPI, **kw) -> None:
+    """Write ``fig`` in the format of ``path``'s suffix (png, pdf, svg) at ``dpi`` (raster parts)."""
+    fig.savefig(path, dpi=dpi, **kw)
+
+
+def envelope(x: np.ndarray, y: np.ndarray, bins: int = ENVELOPE_BINS):
+    """``None`` when ``y`` is short enough to draw as a line; else per-bin
+    ``(x_mid, y_min, y_max, y_median)`` (NaN where a bin has no finite value), so a long or
+    quantised noisy signal is drawn as a band with its median, not as solid vertical bars."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = len(y)
+    if n <= 2 * bins:
+        return None
+    per = int(np.ceil(n / bins))
+    m = int(np.ceil(n / per))
+    pad = m * per - n
+    yp = np.concatenate([y, np.full(pad, np.nan)]).reshape(m, per)
+    xp = np.concatenate([x, np.full(pad, np.nan)]).reshape(m, per)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN bins stay NaN (not measured)
+        return np.nanmean(xp, axis=1), np.nanmin(yp, axis=1), np.nanmax(yp, axis=1), np.nanmedian(yp, axis=1)
+
+
+def draw_series(ax, x: np.ndarray, y: np.ndarray, color: str = "k", lw: float = 0.8) -> None:
+    """A time series as a line, or as a min..max band with its median line when it is long."""
+    env = envelope(x, y)
+    if env is None:
+        ax.plot(x, y, lw=lw, color=color)
+        return
+    xm, lo, hi, med = env
+    ax.fill_between(xm, lo, hi, color=color, alpha=0.25, lw=0, step="mid")
+    ax.plot(xm, med, lw=lw, color=color)
 
 
 def segment_starts(run: RunData) -> tuple[np.ndarray, list[tuple[float, float]]]:
@@ -107,7 +149,9 @@ def segment_starts(run: RunData) -> tuple[np.ndarray, list[tuple[float, float]]]
     return (lines if len(lines) <= MAX_BOUNDARIES else np.array([])), spans
 
 
-def mark_segments(ax, run: RunData, scale: float, label: bool) -> None:
+def mark_segments(ax, run: RunData, scale: float, label: bool) -> str:
+    """Draw segment starts (and repeat blocks); return what was drawn, for the caption
+    ("" when nothing: a caption never promises marks that are not there)."""
     lines, spans = segment_starts(run)
     for i, x in enumerate(lines):
         ax.axvline(x / scale, color="0.6", lw=0.6, ls=":", zorder=0,
@@ -115,6 +159,12 @@ def mark_segments(ax, run: RunData, scale: float, label: bool) -> None:
     for i, (a, b) in enumerate(spans):
         ax.axvspan(a / scale, b / scale, color="tab:green", alpha=0.08, lw=0, zorder=0,
                    label="repeat block" if (label and i == 0) else None)
+    parts = []
+    if len(lines):
+        parts.append("dotted lines mark segment starts")
+    if spans:
+        parts.append("green bands mark repeat blocks")
+    return " and ".join(parts)
 
 
 def direction(turns: np.ndarray) -> np.ndarray:

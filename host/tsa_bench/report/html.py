@@ -20,6 +20,42 @@ from tsa_bench.runner.documents import SAMPLE_COLUMNS
 #: Root attributes shown first, in this order (docs/run-format.md).
 _FIRST = ("plan_name", "exit_status", "reason", "created", "backend", "firmware", "software", "duration_s",
           "wall_time_s", "samples_lost", "port")
+#: How the page names an attribute (others: the name with '_' as spaces, a unit suffix as "(unit)").
+LABELS = {
+    "plan_name": "Plan", "exit_status": "Exit status", "reason": "Reason", "created": "Created",
+    "backend": "Bench", "firmware": "Firmware", "software": "Software", "duration_s": "Duration (device time)",
+    "wall_time_s": "Wall time", "samples_lost": "Samples lost (counter gaps)", "port": "Port",
+    "estimated_duration_s": "Estimated duration", "format": "File format", "format_version": "Format version",
+    "n_segments": "Segments in the plan", "resumed_from": "Resumes", "continued_in": "Continued in",
+    "first_segment": "First segment", "samples_not_stored": "Samples not stored", "derived_from": "Derived from",
+    "recovered_samples": "Samples recovered from the live sidecar",
+}
+_UNIT_SUFFIX = {"_s": "s", "_V": "V", "_mm": "mm", "_ohm": "ohm", "_g": "g", "_N": "N"}
+
+
+def label(key: str) -> str:
+    """A readable name for an attribute key (``duration_s`` -> ``Duration (device time)``)."""
+    if key in LABELS:
+        return LABELS[key]
+    for suffix, unit in _UNIT_SUFFIX.items():
+        if key.endswith(suffix) and len(key) > len(suffix):
+            return f"{key[: -len(suffix)].replace('_', ' ').capitalize()} ({unit})"
+    return key.replace("_", " ").capitalize()
+
+
+def value_text(key: str, v: Any) -> str:
+    """Numbers rounded for reading: durations as h:mm:ss, others to 4 significant digits."""
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return f"{int(v):,}"
+    if isinstance(v, (float, np.floating)):
+        x = float(v)
+        if key.endswith("duration_s") or key == "wall_time_s":
+            total = int(round(x))
+            return f"{total // 3600}:{total // 60 % 60:02d}:{total % 60:02d}" + (f" ({x:.1f} s)" if x < 600 else "")
+        return f"{x:.4g}"
+    return str(v)
 _STYLE = ("body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em}"
           "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:left;"
           "vertical-align:top}img{max-width:100%;border:1px solid #ddd}.bad{color:#a00;font-weight:bold}"
@@ -33,17 +69,14 @@ def _e(x: Any) -> str:
 def _attr_rows(attrs: dict[str, Any]) -> list[tuple[str, str]]:
     keys = [k for k in _FIRST if k in attrs] + sorted(k for k in attrs if k not in _FIRST
                                                       and k not in ("metadata", "device_identity"))
-    rows = []
-    for k in keys:
-        v = attrs[k]
-        if k in ("duration_s", "wall_time_s") and isinstance(v, (int, float, np.floating)):
-            v = f"{float(v):.1f} s"
-        rows.append((k, str(v)))
+    rows = [(label(k), value_text(k, attrs[k])) for k in keys]
     meta = attrs.get("metadata")
     if meta:
         try:
             for k, v in json.loads(meta).items():
-                rows.append((f"metadata: {k}", json.dumps(v) if not isinstance(v, str) else v))
+                shown = value_text(k, v) if isinstance(v, (int, float)) else (
+                    v if isinstance(v, str) else json.dumps(v))
+                rows.append((f"Metadata: {k}", shown))
         except (ValueError, AttributeError, TypeError):  # not the JSON object the contract says
             rows.append(("metadata", str(meta)))
     return rows
@@ -91,7 +124,11 @@ def write_index(report) -> Path:
     if not report.figures:
         parts.append("<p>No figures: the run has no samples.</p>")
     for fig in report.figures:
-        parts.append(f"<figure id='{_e(fig.name)}'><img src='{_e(fig.path.name)}' alt='{_e(fig.name)}'>"
+        src = _e(fig.path.name)
+        shown = (f"<object data='{src}' type='application/pdf' width='100%' height='600'>"
+                 f"<a href='{src}'>{src}</a></object>" if fig.path.suffix == ".pdf"
+                 else f"<img src='{src}' alt='{_e(fig.name)}'>")
+        parts.append(f"<figure id='{_e(fig.name)}'>{shown}"
                      f"<figcaption><b>{_e(fig.name)}</b> (like thesis {_e(fig.thesis)}): {_e(fig.caption)}"
                      "</figcaption></figure>")
     if report.skipped:

@@ -13,10 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from tsa_bench.report.diagnose_report import decimate_minmax
 from tsa_bench.report.fig_common import (
-    DPI, HEAT_COLOR, TWIST_COLOR, UNTWIST_COLOR, broken_line, direction, finite_any_col, grams, mark_segments,
-    pyplot, stride, time_scale, title,
+    DPI, HEAT_COLOR, MAX_BOUNDARIES, TWIST_COLOR, UNTWIST_COLOR, broken_line, direction, draw_series, envelope,
+    finite_any_col, grams, mark_segments, pyplot, save, stride, time_scale, title,
 )
 from tsa_bench.report.run_analysis import (
     cycle_table, motor_stops, plateaus, sample_cycles, span, stiffness_points,
@@ -27,8 +26,32 @@ _SERIES = (("turns", "twist", "turn"), ("length", "length", "mm"), ("resistance"
            ("heater_voltage", "heater voltage", "V"), ("load", "load", "N"))
 
 
-def fig_timeseries(run: RunData, path: Path) -> str | None:
-    """Turns, length, resistance, heater voltage and load against time, segments marked."""
+def zoom_window(run: RunData) -> tuple[float, float] | None:
+    """(start, end) in s of a stretch worth a zoomed inset, or None when the whole run reads
+    well at full width: its first two repeat cycles, else its first 2 % (long runs only)."""
+    t = np.asarray(run.samples["t"], float)
+    seg = run.segments
+    many = seg is not None and len(seg) > MAX_BOUNDARIES
+    if len(t) < 2 or not (many or envelope(t, t) is not None):
+        return None
+    if seg is not None and len(seg) and "cycle" in (seg.dtype.names or ()):
+        cyc = np.asarray(seg["cycle"])
+        inside = np.flatnonzero(cyc >= 0)
+        if len(inside):
+            first = inside[0]
+            block_end = first
+            while block_end + 1 < len(cyc) and cyc[block_end + 1] >= 0 and cyc[block_end + 1] <= 1:
+                block_end += 1
+            a, b = float(seg["t_start"][first]), float(seg["t_end"][block_end])
+            if b > a and b - a < 0.5 * (t[-1] - t[0]):
+                return a, b
+    span = t[-1] - t[0]
+    return float(t[0]), float(t[0] + 0.02 * span)
+
+
+def fig_timeseries(run: RunData, path: Path, dpi: int = DPI) -> str | None:
+    """Turns, length, resistance, heater voltage and load against time, segments marked;
+    a long run gets a zoomed inset in each panel."""
     s = run.samples
     shown = [c for c in _SERIES if finite_any_col(s[c[0]]) and (c[0] in ("turns", "length", "resistance")
                                                               or span(s[c[0]]) > 0)]
@@ -45,24 +68,40 @@ def fig_timeseries(run: RunData, path: Path) -> str | None:
     fig, axes = plt.subplots(len(shown), 1, figsize=(11, 1.9 * len(shown) + 1.2), sharex=True, squeeze=False)
     scale, xlabel = time_scale(s["t"])
     t = np.asarray(s["t"], float) / scale
+    zoom = zoom_window(run)
+    marks = ""
     for i, (ax, (name, label, unit)) in enumerate(zip(axes[:, 0], shown)):
-        x, y = decimate_minmax(t, np.asarray(s[name], float))
-        ax.plot(x, y, lw=0.8, color="k")
+        y = np.asarray(s[name], float)
+        draw_series(ax, t, y)
         ax.set_ylabel(f"{label}\n({unit})")
-        mark_segments(ax, run, scale, label=(i == 0))
+        marks = mark_segments(ax, run, scale, label=(i == 0)) or marks
         if name == "resistance" and not np.isfinite(s[name]).all():
-            ax.text(0.99, 0.95, "gaps: not measured (heater on)", transform=ax.transAxes, ha="right", va="top",
+            ax.text(0.01, 0.95, "gaps: not measured (heater on)", transform=ax.transAxes, ha="left", va="top",
                     fontsize=8, color="0.4")
         ax.grid(alpha=0.3)
+        if zoom is not None:
+            sel = (t >= zoom[0] / scale) & (t <= zoom[1] / scale)
+            if sel.sum() >= 2 and np.isfinite(y[sel]).any():
+                inset = ax.inset_axes([0.68, 0.52, 0.31, 0.44])
+                draw_series(inset, t[sel], y[sel], lw=0.7)
+                inset.tick_params(labelsize=6)
+                inset.set_facecolor("white")
+                ax.indicate_inset_zoom(inset, edgecolor="0.4")
     if axes[0, 0].get_legend_handles_labels()[0]:
         axes[0, 0].legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
     axes[-1, 0].set_xlabel(xlabel)
     title(fig, "Time series", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
-    return "Inputs and outputs against device time; dotted lines mark segment starts" + (
-        "; " + "; ".join(notes) if notes else "") + "."
+    parts = ["Inputs and outputs against device time"]
+    if marks:
+        parts.append(marks)
+    if envelope(t, t) is not None:
+        parts.append("long series drawn as their min..max band per pixel with the median line")
+    if zoom is not None:
+        parts.append(f"insets zoom into {zoom[0]:.4g}..{zoom[1]:.4g} s")
+    return "; ".join(parts + notes) + "."
 
 
 def _loads(run: RunData) -> list[float]:
@@ -71,7 +110,7 @@ def _loads(run: RunData) -> list[float]:
     return [float(v) for v in levels] if len(levels) else [float("nan")]
 
 
-def fig_loops(run: RunData, path: Path) -> str | None:
+def fig_loops(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     """Length against twist, coloured by direction, one panel per load (Fig. 2.5)."""
     s = run.samples
     if span(s["turns"]) <= 0 or not finite_any_col(s["length"]):
@@ -105,7 +144,7 @@ def fig_loops(run: RunData, path: Path) -> str | None:
     axes[0, -1].legend(fontsize=8, loc="best")
     title(fig, "Length vs twist (hysteresis loops)", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     more = f" (first 4 of {len(_loads(run))} loads)" if len(_loads(run)) > 4 else ""
     if len(ids) > 2:
@@ -113,7 +152,7 @@ def fig_loops(run: RunData, path: Path) -> str | None:
     return f"Length against motor twist, blue twisting, red untwisting{more}; dots are rest medians."
 
 
-def fig_voltage(run: RunData, path: Path) -> str | None:
+def fig_voltage(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     """Voltage steps and length over time; steady length (and resistance) vs voltage (Fig. 2.6)."""
     s = run.samples
     v = np.asarray(s["heater_voltage"], float)
@@ -139,8 +178,7 @@ def fig_voltage(run: RunData, path: Path) -> str | None:
     ax.set_ylabel("heater voltage (V)", color=HEAT_COLOR)
     ax.set_xlabel(xlabel)
     ax2 = ax.twinx()
-    x, y = decimate_minmax(t[sel] / scale, np.asarray(s["length"], float)[sel])
-    ax2.plot(x, y, color="k", lw=0.8)
+    draw_series(ax2, t[sel] / scale, np.asarray(s["length"], float)[sel])
     ax2.set_ylabel("length (mm)")
     ax.set_title("(a) voltage input and length", fontsize=10)
     rising = _voltage_direction(rests)
@@ -159,7 +197,7 @@ def fig_voltage(run: RunData, path: Path) -> str | None:
         ax.legend(fontsize=8)
     title(fig, "Heating: length and resistance vs voltage", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     note = "" if with_r else " Resistance is not measured while the heater is on, so it has no panel."
     return "Heater voltage steps and the resulting length; rest medians against voltage." + note
@@ -175,7 +213,7 @@ def _voltage_direction(rests: list) -> list[bool]:
     return out
 
 
-def fig_resistance_length(run: RunData, path: Path) -> str | None:
+def fig_resistance_length(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     """Steady resistance against steady length, coloured by load or time (Fig. 2.7)."""
     rests = [p for p in plateaus(run) if np.isfinite(p.resistance) and np.isfinite(p.length)]
     if len({round(p.turns, 6) for p in rests}) < 3:
@@ -204,12 +242,12 @@ def fig_resistance_length(run: RunData, path: Path) -> str | None:
     ax.legend(fontsize=8, loc="best", markerscale=2)
     title(fig, "Resistance vs length (self-sensing)", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     return f"Rest medians of resistance against length ({how}); grey dots are all samples."
 
 
-def fig_transient(run: RunData, path: Path, max_groups: int = 5, max_curves: int = 30) -> str | None:
+def fig_transient(run: RunData, path: Path, max_groups: int = 5, max_curves: int = 30, dpi: int = DPI) -> str | None:
     """Resistance and length after each motor stop on a log time axis (Fig. 2.8(a)-(b))."""
     stops = [p for p in motor_stops(run) if np.isfinite(run.samples["resistance"][p.start:p.stop]).sum() >= 3]
     if len(stops) < 3:
@@ -249,13 +287,13 @@ def fig_transient(run: RunData, path: Path, max_groups: int = 5, max_curves: int
     sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(norm_lo, norm_hi))
     fig.colorbar(sm, ax=axes.ravel().tolist(), label="twist at rest (turn)", fraction=0.03, pad=0.02)
     title(fig, "Transient after motor stops (log time)", run)
-    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    save(fig, path, dpi, bbox_inches="tight")
     plt.close(fig)
     return (f"Resistance and length during the {len(stops)} rests after a move, against time since the motor "
             f"stopped (log axis), grouped by rest duration, coloured by twist.")
 
 
-def fig_drift(run: RunData, path: Path, min_cycles: int = 5) -> str | None:
+def fig_drift(run: RunData, path: Path, min_cycles: int = 5, dpi: int = DPI) -> str | None:
     """Resistance and length per cycle of a repeat block (lifetime drift, Fig. 2.8(d))."""
     table = cycle_table(run)
     if table is None or len(table.cycle) < min_cycles:
@@ -278,12 +316,12 @@ def fig_drift(run: RunData, path: Path, min_cycles: int = 5) -> str | None:
     axes[-1].set_xlabel("cycle")
     title(fig, f"Drift over {len(table.cycle)} cycles", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     return "Per-cycle mean and range; first to last cycle: " + "; ".join(parts) + "."
 
 
-def fig_stiffness(run: RunData, path: Path) -> str | None:
+def fig_stiffness(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     """Length vs load, linear-model error and normalized stiffness K = F L0/(L-L0) (Fig. 2.4)."""
     pts = stiffness_points(run)
     if len(pts) < 2:
@@ -317,7 +355,7 @@ def fig_stiffness(run: RunData, path: Path) -> str | None:
     axes[2].legend(fontsize=8)
     title(fig, "Stiffness from load steps", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     return (f"Normalized stiffness from {len(pts)} loaded rests at one twist level: linear fit K = {k_fit:.3g} N, "
             f"L0 = {l0:.4g} mm, mean absolute model error {np.mean(np.abs(err)):.3g} mm.")

@@ -4,7 +4,7 @@ Contract: :func:`select_figures` decides from the run's content alone (never fro
 plan name, so imported runs get the same treatment) which figure kinds apply, and says
 why each other kind does not; :func:`write_run_report` reads the run with
 :func:`~tsa_bench.store.read_run` (contract checks, :class:`RunFileError` on a bad file),
-writes ``<kind>.png`` for every applicable kind and ``index.html`` into ``out_dir``, and
+writes ``<kind>.<fmt>`` (png, pdf or svg) for every applicable kind and ``index.html`` into ``out_dir``, and
 returns a :class:`Report`. A run that failed, was aborted or killed is reported as far
 as its data go, with the status in every title and at the top of the page; a run with
 no samples gets a page saying so and no figures.
@@ -20,7 +20,7 @@ import numpy as np
 
 from tsa_bench.report import run_figures as rf
 from tsa_bench.report.extra_figures import extra_columns, fig_extras, fig_extras_xy
-from tsa_bench.report.fig_common import Figure, finite_any_col
+from tsa_bench.report.fig_common import DPI, FORMATS, Figure, finite_any_col
 from tsa_bench.report.html import write_index
 from tsa_bench.report.run_analysis import cycle_table, motor_stops, plateaus, span, stiffness_points
 from tsa_bench.store import RunData, read_run
@@ -83,11 +83,17 @@ def select_figures(run: RunData) -> tuple[list[str], dict[str, str]]:
     return chosen, {k: checks[k][1] for k in KINDS if not checks[k][0]}
 
 
-def write_run_report(run_path: str | Path, out_dir: str | Path | None = None) -> Report:
+def write_run_report(run_path: str | Path, out_dir: str | Path | None = None, *, fmt: str = "png",
+                     dpi: int = DPI) -> Report:
     """Write the figures and index.html of one run; see the module contract.
 
-    ``out_dir`` defaults to ``<run file without .h5>_report`` next to the run file.
+    ``out_dir`` defaults to ``<run file without .h5>_report`` next to the run file;
+    figures are ``<kind>.<fmt>`` (png, pdf or svg) at ``dpi``.
     """
+    if fmt not in FORMATS:
+        raise ValueError(f"figure format {fmt!r} is not one of {', '.join(FORMATS)}")
+    if not 20 <= dpi <= 1200:
+        raise ValueError(f"dpi must be 20..1200, got {dpi}")
     run = read_run(run_path)
     p = Path(run_path)
     out = Path(out_dir) if out_dir is not None else p.with_name(p.stem + "_report")
@@ -96,8 +102,8 @@ def write_run_report(run_path: str | Path, out_dir: str | Path | None = None) ->
     chosen, report.skipped = select_figures(run)
     for kind in chosen:
         draw, thesis = KINDS[kind]
-        path = out / f"{kind}.png"
-        caption = draw(run, path)
+        path = out / f"{kind}.{fmt}"
+        caption = draw(run, path, dpi=dpi)
         if caption is None:  # the drawing found less than the selector did
             report.skipped[kind] = "not enough data for this figure"
             continue

@@ -29,9 +29,9 @@ import yaml
 from tsa_bench.sim.history import simulate
 from tsa_bench.sim.kinematics import NEWTON_PER_GRAM
 from tsa_bench.sim.plant import plant_from_config
+from tsa_bench.shipped import shipped
 
-ROOT = Path(__file__).resolve().parents[3]
-BENCH_DIR = ROOT / "configs" / "bench"
+BENCH_DIR = shipped("bench")
 RATE_TURNS_PER_S = 3.33
 
 

@@ -3,7 +3,9 @@
 Contract: :func:`device_commands` gives the commands of one segment, in order: a move
 is one MOVE_TO, a heater or sampling change one SET_HEATER / SET_SAMPLING, a hold one
 DWELL or, when it is longer than a DWELL can say (:data:`MAX_DWELL_US`, 4294.967 s),
-several DWELLs of near-equal length that add up to it exactly (to the microsecond).
+several DWELLs of near-equal length that add up to it exactly (to the microsecond); a
+settling hold is given as the DWELLs of its maximum duration (for the wire checks: the
+runner sends it in short DWELLs, :mod:`tsa_bench.runner.settle`).
 Prompts have no device command (the host handles them). :func:`plan_problems` lists,
 for a plan on a bench, every segment whose commands would not fit their wire fields
 (a target beyond the 32-bit step range on a bench without a twist limit, a heater
@@ -17,7 +19,7 @@ import math
 from pathlib import Path
 from typing import NamedTuple
 
-from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling
+from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling, Settle
 from tsa_bench.protocol import encode, msg
 
 NO_SEGMENT = 0xFFFF           # wire value for commands outside the plan (setup, teardown)
@@ -42,6 +44,8 @@ def device_commands(seg: Segment, steps_per_turn: int) -> list[NamedTuple]:
                            max(1, round(a.accel_turns_per_s2 * spt)))]
     if isinstance(a, Hold):
         return [msg.Dwell(wire, us) for us in dwell_chunks_us(a.duration_s)]
+    if isinstance(a, Settle):  # at most this; the runner sends it in short DWELLs (runner/settle.py)
+        return [msg.Dwell(wire, us) for us in dwell_chunks_us(a.max_duration_s)]
     if isinstance(a, SetHeater):
         return [msg.SetHeater(wire, round(a.voltage_V * 1000))]
     if isinstance(a, SetSampling):

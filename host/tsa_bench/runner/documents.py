@@ -67,6 +67,7 @@ class RunStart:
     n_segments: int
     estimated_duration_s: float
     metadata: dict[str, Any] = field(default_factory=dict)
+    extra_attrs: dict[str, Any] = field(default_factory=dict)   # more root attributes (a resumed run's link)
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,12 @@ during a flush; a second one only hurries the end. A signal that arrives after t
 last segment but before the file is closed still ends the run "aborted" (the user
 asked to stop; STOP is sent to an idle device).
 
+Settling holds (:mod:`tsa_bench.runner.settle`) are sent as short DWELLs while the
+runner judges the samples; nothing after such a hold is queued until it has settled.
+Resume (:mod:`tsa_bench.runner.resume`): given a :class:`ResumePoint`, the runner
+starts at its segment (indices stay those of the plan), after set-up commands that
+bring the rig to the state the plan had there (sampling period, twist, heater, load).
+
 Link: samples are stored in counter order, each once: a sample whose counter is not
 after the last stored one (a duplicate or a late frame the link layer let through) is
 dropped and counted (``samples_discarded``), and ``samples_lost`` is exactly the sum of
@@ -33,18 +39,21 @@ import numpy as np
 
 from tsa_bench.bench import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
-from tsa_bench.plan import Move, Plan, Prompt, Segment
+from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle
 from tsa_bench.protocol import msg
+from tsa_bench.runner.checks import PlanRejected, check_plan_against_device  # noqa: F401 (re-exported)
 from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
 from tsa_bench.runner.documents import (
-    SAMPLE_COLUMNS, EventRecord, RunConsumer, RunStart, RunStop, SampleBlock, SegmentRecord, StorageFull,
+    EventRecord, RunConsumer, RunStart, RunStop, SegmentRecord, StorageFull,
 )
 from tsa_bench.runner.interrupts import Interrupts
 from tsa_bench.runner.operator import Operator
 from tsa_bench.runner.position import PositionUnknown, settle_position
+from tsa_bench.runner.resume import ResumePoint
+from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, row, sample_block
+from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
 
 COUNTER_MOD = 1 << 32         # SAMPLE.counter is a u32
-G_N_PER_G = 9.80665e-3        # weight of one gram, N
 BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
 BLOCK_WALL_S = 0.5            # or this much wall time has passed, or a segment ends
 
@@ -57,40 +66,12 @@ class RunFailed(Exception):
     """Ends a run as failed with the given reason."""
 
 
-class PlanRejected(ValueError):
-    """The plan does not fit the connected device's limits (nothing was sent)."""
-
-
-def check_plan_against_device(plan: Plan, ident: msg.Identity) -> None:
-    """Refuse a plan the device would refuse, before anything moves."""
-    spt = ident.steps_per_turn
-    problems = []
-    lo, hi = plan.summary().twist_range_turns
-    if round(hi * spt) > ident.max_twist_steps or round(lo * spt) < ident.min_twist_steps:
-        problems.append(f"twist range {lo:g}..{hi:g} turns exceeds the device's "
-                        f"{ident.min_twist_steps / spt:g}..{ident.max_twist_steps / spt:g} turns")
-    vmax = plan.summary().voltage_range_V[1]
-    if round(vmax * 1000) > ident.max_heater_mV:
-        problems.append(f"heater {vmax:g} V exceeds the device's {ident.max_heater_mV / 1000:g} V")
-    pmin = plan.summary().sampling_period_range_s[0]
-    if 0 < round(pmin * 1e6) < ident.min_sample_period_us:
-        problems.append(f"sampling period {pmin * 1000:g} ms is shorter than the device's "
-                        f"{ident.min_sample_period_us / 1000:g} ms")
-    for seg in plan.segments:
-        a = seg.action
-        if isinstance(a, Move) and (round(a.rate_turns_per_s * spt) > ident.max_rate_steps_per_s
-                                    or round(a.accel_turns_per_s2 * spt) > ident.max_accel_steps_per_s2):
-            problems.append(f"{seg.source}: rate/acceleration beyond the device's maximum")
-            break
-    if problems:
-        raise PlanRejected("; ".join(problems))
-
-
 class Runner:
     """Runs one plan on a connected :class:`BenchClient`; see the module contract."""
 
     def __init__(self, client: BenchClient, plan: Plan, bench: BenchConfig, consumers: Sequence[RunConsumer],
-                 operator: Operator, *, backend: str, port_name: str, interrupts: Interrupts | None = None) -> None:
+                 operator: Operator, *, backend: str, port_name: str, interrupts: Interrupts | None = None,
+                 resume: ResumePoint | None = None, metadata: dict | None = None) -> None:
         if client.identity is None:
             raise ValueError("connect the client before running")
         self.client, self.plan, self.bench = client, plan, bench
@@ -101,14 +82,23 @@ class Runner:
         self.ident: msg.Identity = client.identity
         self.spt = self.ident.steps_per_turn
         self.simulated = bool(self.ident.flags & msg.DeviceFlags.SIMULATED)
+        self.resume = resume
+        self.metadata = {**plan.metadata, **(metadata or {})}
         n = len(plan.segments)
+        first = resume.first_segment if resume is not None else 0
+        if not 0 <= first <= n:
+            raise ValueError(f"resume segment {first} is outside the plan's {n} segments")
         self._t_start = np.full(n, np.nan)
         self._done = np.zeros(n, bool)
+        self._done[:first] = True
         self._parts = np.zeros(n, np.int64)        # device commands of each segment (a long hold: several)
         self._parts_done = np.zeros(n, np.int64)   # SEGMENT_DONE events seen per segment
         self._to_send: list[NamedTuple] = []       # commands of segment _next not yet accepted
-        self._next = 0                  # next plan segment to send
-        self._oldest = 0                # oldest segment not yet done
+        self._next = first              # next plan segment to send
+        self._oldest = first            # oldest segment not yet done
+        self._settle: SettleHold | None = None   # the settling hold being sent, if any
+        self._settle_done_t: float | None = None  # when its last queued DWELL ended
+        self._settle_outcome: dict[int, dict] = {}  # what each decided settling hold found
         self._free = self.ident.queue_slots
         self._last_sent_wire = NO_SEGMENT
         self._t0_us: int | None = None
@@ -117,6 +107,8 @@ class Runner:
         self._last_rx_wall = time.monotonic()
         # hanging mass (g) as the protocol declares it; NaN = not declared (unknown)
         self._load_g = float(plan.load_g) if plan.load_g is not None else float("nan")
+        if resume is not None:
+            self._load_g = float(resume.load_g) if resume.load_g is not None else float("nan")
         self._prompt_segment: int | None = None
         self._last_status: msg.QueueStatus | None = None
         self._rows: list[tuple] = []
@@ -166,7 +158,8 @@ class Runner:
             bench_text=self.bench.source_text, bench_path=self.bench.path, backend=self.backend,
             port=self.port_name, firmware=f"{ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}",
             identity=ident._asdict(), n_segments=len(plan.segments),
-            estimated_duration_s=summary.duration_s, metadata=dict(plan.metadata))
+            estimated_duration_s=summary.duration_s, metadata=dict(self.metadata),
+            extra_attrs=self.resume.attributes() if self.resume is not None else {})
         status, reason = "success", "all segments done"
         installed_here = self.interrupts.install()
         self.client.on_wait = self.interrupts.check
@@ -231,7 +224,15 @@ class Runner:
             raise RunFailed(str(exc)) from None
         if self.simulated and plan_load_known(self._load_g):
             self._command(msg.SimSetLoad(load_mg(self._load_g)))
-        self._queued(msg.SetSampling(NO_SEGMENT, round(self.plan.sampling_period_s * 1e6)), "set sampling")
+        r = self.resume
+        period_s = self.plan.sampling_period_s if r is None else r.sampling_period_s
+        self._queued(msg.SetSampling(NO_SEGMENT, round(period_s * 1e6)), "set sampling")
+        if r is not None:   # the state the plan had at the resumed segment
+            self._event("resume", r.describe())
+            self._queued(msg.MoveTo(NO_SEGMENT, round(r.turns * self.spt), max(1, round(r.rate_turns_per_s * self.spt)),
+                                    max(1, round(r.accel_turns_per_s2 * self.spt))), "the move to the resumed twist")
+            if r.heater_V:
+                self._queued(msg.SetHeater(NO_SEGMENT, round(r.heater_V * 1000)), "the resumed heater voltage")
 
     def _teardown(self) -> None:
         self._queued(msg.SetHeater(NO_SEGMENT, 0), "heater off")
@@ -279,6 +280,10 @@ class Runner:
                     return                 # the device must finish what it has first
                 self._do_prompt(seg)
                 continue
+            if isinstance(seg.action, Settle):
+                if not self._feed_settle(seg):
+                    return
+                continue
             if not self._to_send:          # a long hold is several DWELLs
                 self._to_send = device_commands(seg, self.spt)
                 self._parts[self._next] = len(self._to_send)
@@ -296,6 +301,39 @@ class Runner:
             self._to_send.pop(0)
             if not self._to_send:
                 self._next += 1
+
+    def _feed_settle(self, seg: Segment) -> bool:
+        """Queue the next DWELL of a settling hold, or end its sending once it has
+        settled; False when nothing more can be sent now."""
+        st = self._settle
+        if st is None or st.index != seg.index:
+            st = self._settle = SettleHold(seg.index, seg.action)  # type: ignore[arg-type]
+            self._settle_done_t = None
+        if st.verdict() is not None:
+            self._settle_outcome[seg.index] = st.outcome()
+            self._event("settled" if st.settled else "not_settled",
+                        f"segment {seg.index}: " + st.describe(self._t(self._now_us) - (st.t_start or 0.0)))
+            self._next += 1
+            if self._settle_done_t is not None and self._parts_done[seg.index] >= self._parts[seg.index]:
+                self._finish_segment(seg.index, float(self._t_start[seg.index]), self._settle_done_t, True)
+            return True
+        if self._parts[seg.index] - self._parts_done[seg.index] >= IN_FLIGHT:
+            return False
+        chunk_s = st.next_chunk_s()
+        ack = self._command(msg.Dwell(seg.index % WIRE_SEGMENTS, round(chunk_s * 1e6)))
+        if ack.status == msg.Status.QUEUE_FULL:
+            self._free = 0
+            return False
+        if ack.status == msg.Status.BAD_STATE:
+            self._explain_bad_state()
+        if ack.status != msg.Status.OK:
+            raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
+                            f"{msg.Status(ack.status).name.lower()}")
+        self._free = ack.queue_free
+        self._last_sent_wire = seg.index % WIRE_SEGMENTS
+        self._parts[seg.index] += 1
+        st.sent_s += chunk_s
+        return True
 
     def _explain_bad_state(self) -> None:
         """A refusal for bad state means a latched fault: report the fault itself (its
@@ -384,9 +422,12 @@ class Runner:
         self._now_us = max(self._now_us, s.t_us)
         self._last_counter = s.counter
         seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
-        self._rows.append((s.t_us, s.step_position, s.position_raw, s.resistance_raw, s.adc_flags,
-                           s.heater_mV, s.motor_moving, seg, s.counter, self._load_g))
+        self._rows.append(row(s, seg, self._load_g))
         self.samples += 1
+        st = self._settle
+        if st is not None and st.index == seg and st.settled is None:
+            st.add(self._t(s.t_us), length_mm(self.bench, s.position_raw, s.adc_flags),
+                   resistance_ohm(self.bench, s.resistance_raw, s.adc_flags))
 
     def _on_event(self, e: msg.Event) -> None:
         self._now_us = max(self._now_us, e.t_us)
@@ -398,11 +439,15 @@ class Runner:
                 self._finish_before(idx, e.t_us)
                 if np.isnan(self._t_start[idx]):  # the first of its device commands
                     self._t_start[idx] = self._t(e.t_us)
+                    if self._settle is not None and self._settle.index == idx:
+                        self._settle.t_start = self._t(e.t_us)
         elif kind == msg.EventKind.SEGMENT_DONE:
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._done) and not self._done[idx]:
                 self._finish_before(idx, e.t_us)
                 self._parts_done[idx] += 1
+                if self._settle is not None and self._settle.index == idx:
+                    self._settle_done_t = self._t(e.t_us)
                 if idx < self._next and self._parts_done[idx] >= self._parts[idx]:  # its last command
                     start = self._t_start[idx]
                     t_end = self._t(e.t_us)
@@ -439,7 +484,9 @@ class Runner:
         self._segments_done += completed
         while self._oldest < len(self._done) and self._done[self._oldest]:
             self._oldest += 1
-        self._emit("on_segment", SegmentRecord(idx, seg.kind, t_start, t_end, seg.params(), seg.source,
+        params = seg.params()
+        params.update(self._settle_outcome.pop(idx, {}))
+        self._emit("on_segment", SegmentRecord(idx, seg.kind, t_start, t_end, params, seg.source,
                                                seg.cycle, completed))
 
     def _close_open_segments(self) -> None:
@@ -451,29 +498,6 @@ class Runner:
     def _flush_rows(self) -> None:
         if not self._rows:
             return
-        a = np.array(self._rows, dtype=np.float64)
-        self._rows = []
+        rows, self._rows = self._rows, []
         self._last_block_wall = time.monotonic()
-        cal_p, cal_r = self.bench.position, self.bench.resistance
-        flags = a[:, 4].astype(np.uint8)
-        resistance = cal_r.resistance_ohm(a[:, 3])
-        resistance[(flags & msg.AdcFlags.RESISTANCE_NOT_MEASURED) != 0] = np.nan
-        length = cal_p.length_mm(a[:, 2])
-        length[(flags & msg.AdcFlags.POSITION_INVALID) != 0] = np.nan
-        cols = {
-            "t": (a[:, 0] - (self._t0_us or 0)) / 1e6,
-            "turns": a[:, 1] / self.spt,
-            "length": length,
-            "resistance": resistance,
-            "heater_voltage": a[:, 5] / 1000.0,
-            "load": a[:, 9] * G_N_PER_G,
-            "segment": a[:, 7],
-            "motor_moving": a[:, 6],
-            "counter": a[:, 8],
-            "step_position": a[:, 1],
-            "position_raw": a[:, 2],
-            "resistance_raw": a[:, 3],
-            "adc_flags": flags,
-        }
-        block = SampleBlock({k: np.asarray(v).astype(SAMPLE_COLUMNS[k][0]) for k, v in cols.items()})
-        self._emit("on_samples", block)
+        self._emit("on_samples", sample_block(rows, self.bench, self.spt, self._t0_us or 0))

@@ -4,7 +4,7 @@ Units: length in mm, resistance in ohm, heater voltage in mV; outputs in raw cou
 
 Contract: the inverse of the bench calibrations. Length -> ``round(position.counts(L))``
 clipped silently to the int16 rails (a real ADS1115 saturates without complaint).
-Resistance -> ``round(R / ohm_per_count)`` in the converter's signed range
+Resistance -> ``round(resistance.counts(R))`` (``(R - offset_ohm) / (gain ohm_per_count)``) in the converter's signed range
 (``-2^(bits-1) .. 2^(bits-1) - 1``); beyond it the count is clipped and
 ``AdcFlags.RESISTANCE_OVERRANGE`` is set (the CS5513 OF bit). While the heater is on
 (> 0 mV) the 50 mA sense current is switched off: the count is 0 and
@@ -32,7 +32,8 @@ class SimSensors:
         self.resistance = resistance
         self._offset_mm = position.offset_mm
         self._count_per_mm = 1.0 / position.mm_per_count
-        self._count_per_ohm = 1.0 / resistance.ohm_per_count
+        self._count_per_ohm = 1.0 / (resistance.gain * resistance.ohm_per_count)
+        self._offset_ohm = resistance.offset_ohm
         self._r_max = resistance.max_counts
         self._r_min = -resistance.max_counts - 1
 
@@ -43,7 +44,7 @@ class SimSensors:
 
     def resistance_raw(self, resistance_ohm: float) -> tuple[int, int]:
         """CS5513 counts and the flags they raise (overrange only)."""
-        counts = round(resistance_ohm * self._count_per_ohm)
+        counts = round((resistance_ohm - self._offset_ohm) * self._count_per_ohm)
         if counts > self._r_max:
             return self._r_max, _OVERRANGE
         if counts < self._r_min:

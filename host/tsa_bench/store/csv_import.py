@@ -18,7 +18,12 @@ Contract of :func:`import_csv`:
   channels are converted to the unit they are stored in (:mod:`tsa_bench.units`; a load
   given as a mass in g or kg becomes N with g0 = 9.80665 m/s^2; K and degF become
   degC); a unit of another dimension is an error naming the allowed units. Any other
-  extra column keeps the unit it came with, which must be given;
+  extra column keeps the unit it came with, which must be given. A column's unit comes
+  from ``units``, else its header (``name [unit]``), else a unit at the end of its name
+  (``time_ms``, ``len_cm``, ``R_kohm``). Every chosen column measured in a physical unit
+  must have one: a column without is refused (all such columns named at once), never
+  taken silently in the stored unit (a time in ms read as s). Dimensionless and count
+  columns (segment, motor_moving, counter, raw counts, flags, strain) need none;
 * every cell must parse: an empty or ``nan`` cell is NaN (not measured) in float
   columns, but an error in ``t`` and in integer columns; integers must fit their
   column's type (``position_raw`` is int16: 40000 is refused, never wrapped); no value
@@ -99,6 +104,25 @@ def _conversion(target: str, unit: str, where: str) -> tuple[float, float, str]:
         raise CsvImportError(f"{where}: extra column {target} has no unit; give one in the header "
                              f"('{target} [unit]') or with --units {target}=UNIT (use 1 for a pure number)")
     return 1.0, 0.0, unit
+
+
+def _name_unit(target: str, name: str) -> str:
+    """The unit at the end of a column name (``time_ms`` -> ``ms``), if it is one for ``target``."""
+    if "_" not in name or target not in CHANNELS:
+        return ""
+    suffix = name.rsplit("_", 1)[1]
+    try:
+        channel_conversion(target, suffix)
+    except UnitError:
+        return ""
+    return suffix
+
+
+def _needs_unit(target: str) -> bool:
+    """Whether a column for ``target`` is measured in a physical unit (so it must say which)."""
+    if target in CHANNELS:
+        return CHANNELS[target].dimension != "dimensionless"
+    return target not in SAMPLE_COLUMNS
 
 
 def _read_header(path: Path) -> tuple[list[str], int, str, list[tuple[int, list[str]]]]:
@@ -283,13 +307,21 @@ def import_csv(csv_path: str | Path, out_path: str | Path, mapping: dict[str, st
     for key in units:
         if key not in cols and key not in header and key not in [_split_header(c)[0] for c in header]:
             raise CsvImportError(f"--units: '{key}' is neither a mapped column nor a CSV column")
-    conversions, used, stored = {}, {}, {}
+    conversions, used, stored, unitless = {}, {}, {}, []
     for target, i in cols.items():
         name, head_unit = _split_header(header[i])
-        unit = units.get(target, units.get(header[i], units.get(name, head_unit)))
+        unit = units.get(target, units.get(header[i], units.get(name, head_unit or _name_unit(target, name))))
+        if not unit and _needs_unit(target):
+            stored_unit = CHANNELS[target].unit if target in CHANNELS else "UNIT"
+            unitless.append(f"{src}:{header_line}: column '{header[i]}' ({target}) has no unit: give it in the "
+                            f"header ('{name} [{stored_unit}]') or with --units {target}=UNIT "
+                            f"(use 1 for a pure number)")
+            continue
         f, o, stored[target] = _conversion(target, unit, f"{src}:{header_line}: column '{header[i]}' ({target})")
         conversions[target] = (f, o)
         used[target] = unit or stored[target]
+    if unitless:
+        raise CsvImportError("\n".join(unitless))
     data = _parse(src, header, rows, cols, conversions)
     if sample_period_s is not None:
         data["t"] = np.arange(len(rows), dtype=float) * sample_period_s

@@ -47,8 +47,13 @@ from tsa_bench.store.space import HEADER_BYTES, StorageFull, ensure_room, flush_
 NO_ROOM_ERRNOS = {28, 27, 122}
 
 FORMAT = "tsa-bench/run"
-FORMAT_VERSION = "1.0"
+#: 1.1: sample columns gzip+shuffle compressed, ``t`` an HDF5 dimension scale of the others
+#: (1.0 files, uncompressed and without scales, are read the same way).
+FORMAT_VERSION = "1.1"
+#: Rows per chunk of a sample column.
 CHUNK = 8192
+#: gzip level of the sample columns (0: uncompressed); shuffle goes with it.
+COMPRESSION_LEVEL = 4
 STR = h5py.string_dtype("utf-8")
 SEGMENT_DTYPE = np.dtype([("index", "i4"), ("kind", STR), ("t_start", "f8"), ("t_end", "f8"),
                           ("completed", "u1"), ("cycle", "i4"), ("source", STR), ("params", STR)])
@@ -82,8 +87,14 @@ class _Appender:
 class RunWriter:
     """Writes one run file; see the module contract."""
 
-    def __init__(self, path: str | Path, flush_interval_s: float = 1.0, min_flush_interval_s: float = 0.05) -> None:
+    def __init__(self, path: str | Path, flush_interval_s: float = 1.0, min_flush_interval_s: float = 0.05,
+                 *, chunk_rows: int = CHUNK, compression_level: int = COMPRESSION_LEVEL) -> None:
+        if not 1 <= chunk_rows <= 1 << 20 or not 0 <= compression_level <= 9:
+            raise ValueError(f"chunk_rows must be 1..{1 << 20} and compression_level 0..9, "
+                             f"got {chunk_rows} and {compression_level}")
         self.path = Path(path)
+        self.chunk_rows = chunk_rows
+        self.compression_level = compression_level
         self.flush_interval_s = flush_interval_s
         self.min_flush_interval_s = min_flush_interval_s
         self._segment_flush_due = False
@@ -123,18 +134,28 @@ class RunWriter:
         a["plan_name"] = start.plan_name
         a["port"] = start.port
         a["estimated_duration_s"] = start.estimated_duration_s
+        a["n_segments"] = start.n_segments
         a["device_identity"] = json.dumps(start.identity)
         a["metadata"] = json.dumps(start.metadata, default=str)
+        for key, value in start.extra_attrs.items():
+            a[key] = value
         cfg = f.create_group("config")
         cfg.create_dataset("protocol", data=start.protocol_text, dtype=STR)
         cfg["protocol"].attrs["path"] = start.protocol_path or ""
         cfg.create_dataset("bench", data=start.bench_text, dtype=STR)
         cfg["bench"].attrs["path"] = start.bench_path or ""
         g = f.create_group("samples")
+        packed = {"compression": "gzip", "compression_opts": self.compression_level, "shuffle": True} \
+            if self.compression_level else {}
         for name, (dtype, units) in SAMPLE_COLUMNS.items():
             fill = np.nan if dtype == "f8" else 0
-            ds = g.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(CHUNK,), dtype=dtype, fillvalue=fill)
+            ds = g.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(self.chunk_rows,), dtype=dtype,
+                                  fillvalue=fill, **packed)
             ds.attrs["units"] = units
+        g["t"].make_scale("t")  # xarray, netCDF and HDFView see time as the dimension of every column
+        for name in SAMPLE_COLUMNS:
+            if name != "t":
+                g[name].dims[0].attach_scale(g["t"])
         seg = f.create_dataset("segments", shape=(0,), maxshape=(None,), chunks=(1024,), dtype=SEGMENT_DTYPE)
         for field, units in SEGMENT_UNITS.items():
             seg.attrs[f"{field}_units"] = units

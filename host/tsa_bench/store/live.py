@@ -11,7 +11,9 @@ file stays the only record, and :class:`LiveSidecar`, a run consumer placed AFTE
 * header: 8 bytes ``TSALIVE1``, u32 little-endian length, that many bytes of UTF-8 JSON
   (``version``, ``record_dtype``, ``record_size``, ``run_file``, ``plan_name``,
   ``n_segments``, ``estimated_duration_s``, ``pid``, ``host``, ``started``);
-* then fixed-size little-endian records (:data:`RECORD`), append-only, flushed to the
+* then fixed-size little-endian records (:data:`RECORD`: every sample column of the run
+  file, raw counts included, so a killed run's last samples can be recovered from it
+  by ``tsa-bench run --resume``), append-only, flushed to the
   operating system at least every ``flush_interval_s`` (0.1 s) and at segment ends; a
   reader takes only whole records below the size it sees;
 * ``kind`` 0 is a sample; the last record has ``kind`` 1 success, 2 aborted or 3 failed,
@@ -44,10 +46,13 @@ from tsa_bench.documents import DocumentError, parse_json
 from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 MAGIC = b"TSALIVE1"
-VERSION = 1
-RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("segment", "<i4"), ("counter", "<u4"),
-                   ("t", "<f8"), ("turns", "<f8"), ("length", "<f8"), ("resistance", "<f8"),
+VERSION = 2
+RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("adc_flags", "u1"),
+                   ("segment", "<i4"), ("counter", "<u4"), ("step_position", "<i4"), ("resistance_raw", "<i4"),
+                   ("position_raw", "<i2"), ("t", "<f8"), ("turns", "<f8"), ("length", "<f8"), ("resistance", "<f8"),
                    ("heater_voltage", "<f8"), ("load", "<f8")])
+#: Record fields that are sample columns of the run file.
+SAMPLE_FIELDS = RECORD.names[1:]
 END_KINDS = {"success": 1, "aborted": 2, "failed": 3}
 END_NAMES = {v: k for k, v in END_KINDS.items()}
 MAX_HEADER_BYTES = 64 * 1024
@@ -114,7 +119,7 @@ class LiveSidecar:
     def on_samples(self, block: SampleBlock) -> None:
         c = block.columns
         rec = np.zeros(len(block), dtype=RECORD)
-        for name in RECORD.names[1:]:
+        for name in SAMPLE_FIELDS:
             rec[name] = c[name]
         self._write(rec)
 

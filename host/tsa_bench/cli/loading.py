@@ -1,0 +1,103 @@
+"""What several commands read first: the bench file, the protocol, the port; each
+refused with a one-line error (exit 2) before anything is opened or sent.
+
+Bench file when none is given: the simulated bench (``configs/bench/sim.yaml``) without
+a port or with ``sim://``, the Arduino Mega bench (``configs/bench/arduino-mega.yaml``)
+with a serial port, which is said on stderr. Paths are looked up as documented in
+:mod:`tsa_bench.shipped` (the shipped configs when not found as given).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from tsa_bench.cli.exits import fail
+
+SIM_BENCH, MEGA_BENCH = "sim.yaml", "arduino-mega.yaml"
+
+ALLOW_URL = click.option("--allow-url", is_flag=True,
+                         help="Allow any pyserial URL as the port (spy://, socket://, ...); by default only serial "
+                              "device paths and sim:// are allowed.")
+TRUST_FW = click.option("--trust-firmware-dir", is_flag=True,
+                        help="Let a simavr bench build firmware in a folder other than this project's firmware/.")
+
+
+def is_serial_port(port: str | None) -> bool:
+    """A port naming a serial device (not the simulated bench's sim://)."""
+    return port is not None and not port.lower().startswith("sim://")
+
+
+def bench_path(path: str | None, port: str | None = None, *, say: bool = True) -> Path:
+    """The bench file to read: ``path`` (searched), else the default for ``port``."""
+    from tsa_bench.shipped import find_config, shipped
+
+    if path is None:
+        if is_serial_port(port):
+            default = shipped(f"bench/{MEGA_BENCH}")
+            if say:
+                click.echo(f"tsa-bench: no --bench given for the serial port {port}: using the Arduino Mega bench "
+                           f"file {default} (pass --bench with your calibrated copy)", err=True)
+            return default
+        return shipped(f"bench/{SIM_BENCH}")
+    found, from_shipped = find_config(path, "bench")
+    if from_shipped and say:
+        click.echo(f"tsa-bench: {path} is not in the current folder: using the shipped {found}", err=True)
+    return found
+
+
+def load_bench_or_exit(path: str | None, port: str | None = None, *, allow_url: bool = False,
+                       trust_firmware_dir: bool = False, say: bool = True):
+    """The validated bench file (see :func:`bench_path`), or exit 2 with its error."""
+    from tsa_bench.bench import BenchConfigError, load_bench
+
+    try:
+        return load_bench(bench_path(path, port, say=say), allow_url=allow_url,
+                          trust_firmware_dir=trust_firmware_dir)
+    except BenchConfigError as exc:
+        fail(str(exc))
+
+
+def load_plan_or_exit(path: str, bench):
+    """The protocol, compiled under the bench limits, with every device command checked to
+    fit the wire: `validate` and `run` refuse exactly the same protocols."""
+    from tsa_bench.plan import PlanErrors, load_plan
+    from tsa_bench.runner.commands import plan_problems
+    from tsa_bench.shipped import find_config
+
+    found, from_shipped = find_config(path, "protocols")
+    if from_shipped:
+        click.echo(f"tsa-bench: {path} is not in the current folder: using the shipped {found}", err=True)
+    try:
+        plan = load_plan(found, bench.limits)
+    except PlanErrors as exc:
+        fail(f"{found} is not a valid protocol; nothing was sent to any device:\n{exc}")
+    problems = plan_problems(plan, bench.steps_per_turn)
+    if problems:
+        fail(f"{found} cannot be sent to bench '{bench.name}'; nothing was sent to any device:\n"
+             + "\n".join(problems))
+    return plan
+
+
+def check_port_or_exit(port: str | None, allow_url: bool) -> None:
+    from tsa_bench.bench.ports import PortPolicyError, check_port
+
+    if port is not None:
+        try:
+            check_port(port, allow_url=allow_url)
+        except PortPolicyError as exc:
+            fail(f"--port: {exc}")
+
+
+def meta_pairs(values: tuple[str, ...], option: str = "--meta") -> dict[str, str]:
+    """``KEY=VALUE`` pairs, one per option use (the value may hold commas or '='); exit 2 if malformed."""
+    out: dict[str, str] = {}
+    for item in values:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            fail(f"{option}: '{item}' is not KEY=VALUE")
+        if any(ch in item for ch in "\x00\r\n"):
+            fail(f"{option}: '{key.strip()}' holds a control character")
+        out[key.strip()] = value
+    return out

@@ -1,0 +1,325 @@
+"""`tsa-bench run`: one protocol on one bench, one HDF5 run file (or `--resume` one).
+
+Exit codes as in :mod:`tsa_bench.cli`.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import re
+import signal
+import sys
+import urllib.parse
+from pathlib import Path
+
+import click
+
+from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_FAILED, fail
+from tsa_bench.cli.loading import (
+    ALLOW_URL, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit, load_plan_or_exit, meta_pairs,
+)
+
+
+def _sim_url(bench_file: str | None, speed: float | None, seed: int | None) -> str:
+    query = {}
+    if bench_file:
+        query["bench"] = str(Path(bench_file).resolve())
+    if speed:
+        query["speed"] = repr(speed)
+    if seed is not None:
+        query["seed"] = str(seed)
+    return "sim://" + ("?" + urllib.parse.urlencode(query) if query else "")
+
+
+def _out_path(out_dir: str, plan_name: str) -> Path:
+    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", plan_name).strip("-") or "run"
+    path = Path(out_dir) / f"{stamp}_{safe}.h5"
+    n = 1
+    while path.exists():
+        n += 1
+        path = Path(out_dir) / f"{stamp}_{safe}-{n}.h5"
+    return path
+
+
+def _resumed_path(first: Path) -> Path:
+    path = first.with_name(f"{first.stem}-resumed.h5")
+    n = 1
+    while path.exists() or path.is_symlink():
+        n += 1
+        path = first.with_name(f"{first.stem}-resumed-{n}.h5")
+    return path
+
+
+def _start_simavr(bench, speed: float | None, seed: int | None, trust_firmware_dir: bool):
+    """Build and start the firmware-in-the-loop bench; exit with a clear error if it cannot."""
+    import dataclasses
+
+    from tsa_bench.bench import BenchConfigError
+    from tsa_bench.simavr import SimavrBench, SimavrError, simavr_settings
+    try:
+        settings = simavr_settings(bench, trust_firmware_dir=trust_firmware_dir)
+        if speed:
+            settings = dataclasses.replace(settings, realtime_factor=speed)
+        return SimavrBench(bench, settings, seed=seed).__enter__()
+    except BenchConfigError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    except SimavrError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(EXIT_FAILED)
+
+
+def _report_simavr(fil) -> None:
+    """One line from the harness summary; violations and crashes loudly."""
+    s = fil.summary
+    if not s:
+        click.echo(f"warning: the simavr harness left no summary (exit code {fil.returncode}): {fil.stderr_text}",
+                   err=True)
+        return
+    bad = {k: v for k, v in s["violations"].items() if v}
+    click.echo(f"simavr       {s['device_time_s']:.1f} s of device time, {s['steps']['total']} steps, "
+               f"violations: {bad or 'none'}" + (" - FIRMWARE CRASHED" if s["crashed"] else ""))
+
+
+@click.command()
+@click.argument("protocol", type=click.Path(dir_okay=False), required=False)
+@click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
+              help="Bench file (default: configs/bench/sim.yaml, the simulated bench; with a serial --port, "
+                   "configs/bench/arduino-mega.yaml).")
+@click.option("--port", default=None, help="Serial device (or sim://); overrides the bench file's backend.")
+@click.option("--out", "out_dir", default="runs", show_default=True, help="Directory for the run file.")
+@click.option("--output", "out_file", type=click.Path(dir_okay=False), default=None,
+              help="Exact run-file path (overrides --out).")
+@click.option("--speed", type=float, default=None,
+              help="Simulated benches only: real-time factor (1 = wall-clock pace); default as fast as possible.")
+@click.option("--seed", type=int, default=None, help="Simulated bench only: noise seed.")
+@click.option("--meta", "metas", multiple=True, metavar="KEY=VALUE",
+              help="Stored in the run's metadata, e.g. --meta operator=ana --meta sample=S3 (repeatable).")
+@click.option("--resume", "resume_file", type=click.Path(dir_okay=False), default=None,
+              help="Continue this aborted, failed or killed run from its first incomplete segment, into a new "
+                   "file linked to it (default name: RUN-resumed.h5 beside it).")
+@ALLOW_URL
+@TRUST_FW
+def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
+        speed: float | None, seed: int | None, metas: tuple[str, ...], resume_file: str | None, allow_url: bool,
+        trust_firmware_dir: bool) -> None:
+    """Run PROTOCOL on the bench and write one HDF5 run file.
+
+    Ctrl-C or SIGTERM sends STOP at once and closes the file "aborted" (exit 130); a
+    second one only hurries the end. A full disk ends the run "failed" (exit 1).
+    """
+    from tsa_bench.runner.interrupts import Interrupts
+
+    # SIGINT/SIGTERM: immediate until the run starts, then deferred to safe points.
+    # A file-size limit (ulimit -f) makes writes fail instead of killing the process.
+    interrupts = Interrupts()
+    interrupts.install()
+    if hasattr(signal, "SIGXFSZ"):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    try:
+        with interrupts.immediate():
+            session = _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file,
+                                   allow_url, trust_firmware_dir)
+        code = _execute_run(session, interrupts)
+    except KeyboardInterrupt:
+        click.echo("aborted before the run started; nothing was run", err=True)
+        code = EXIT_ABORTED
+    finally:
+        if interrupts.requested:
+            # Exiting 130: a further signal must not change that, nor kill the process
+            # while Python shuts down (it puts default handlers back, but keeps SIG_IGN).
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, signal.SIG_IGN)
+        else:
+            interrupts.restore()
+    sys.exit(code)
+
+
+def _check_simulation_options(port: str | None, bench, speed: float | None, seed: int | None) -> None:
+    """--speed and --seed only mean something to a simulation this process runs."""
+    serial = is_serial_port(port) or (port is None and bench.backend == "serial")
+    if serial and speed is not None:
+        fail(f"--speed applies only to a simulated bench this command runs (sim://, simavr); {port or bench.port} "
+             "is a serial device, which runs in real time (give --speed to `tsa-bench sim-serve` instead)")
+    if serial and seed is not None:
+        fail(f"--seed applies only to a simulated bench this command runs (sim://, simavr); the device on "
+             f"{port or bench.port} has no noise seed (give --seed to `tsa-bench sim-serve` instead)")
+    if speed is not None and not (speed > 0 and speed < float("inf")):
+        fail("--speed must be > 0 (a real-time factor)")
+
+
+def _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file, allow_url,
+                 trust_firmware_dir):
+    """Everything that can be refused before anything is opened: bench, protocol, port,
+    output path, free space. Exits 2 (bad input) or 1 (no room) with nothing sent."""
+    from tsa_bench.store.space import StorageFull, ensure_room, run_bytes
+
+    check_port_or_exit(port, allow_url)
+    meta = meta_pairs(metas)
+    resume = None
+    if resume_file is not None:
+        if protocol is not None:
+            fail("give either PROTOCOL or --resume RUN.h5 (a resumed run uses the protocol stored in RUN.h5)")
+        from tsa_bench.cli.resume import prepare_resume
+
+        bench, plan, resume, bench_file = prepare_resume(resume_file, bench_path, port, allow_url, trust_firmware_dir)
+    else:
+        if protocol is None:
+            fail("missing PROTOCOL (a protocol YAML file), or --resume RUN.h5")
+        bench = load_bench_or_exit(bench_path, port, allow_url=allow_url, trust_firmware_dir=trust_firmware_dir)
+        plan = load_plan_or_exit(protocol, bench)
+        bench_file = bench.path
+    _check_simulation_options(port, bench, speed, seed)
+    if out_file:
+        path = Path(out_file)
+    elif resume is not None and out_dir == "runs":
+        path = _resumed_path(Path(resume_file))
+    else:
+        path = _out_path(out_dir, plan.name)
+    if path.exists() or path.is_symlink():  # never overwrite recorded data
+        fail(f"{path} already exists; choose another --output; nothing was run")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        fail(f"cannot write the run file {path}: {exc.strerror or exc}; nothing was run")
+    if not path.parent.is_dir() or not os.access(path.parent, os.W_OK):
+        fail(f"cannot write the run file {path}: its folder is not writable; nothing was run")
+    summary = plan.summary()
+    period_s = min(plan.sampling_period_s, summary.sampling_period_range_s[0] or plan.sampling_period_s)
+    try:
+        ensure_room(path, run_bytes(summary.duration_s / period_s, len(plan.segments)), "this run")
+    except StorageFull as exc:
+        fail(f"{exc}; free some space or choose another --out; nothing was run", EXIT_FAILED)
+    return dict(bench=bench, bench_file=bench_file, plan=plan, port=port, path=path, speed=speed, seed=seed,
+                meta=meta, resume=resume, trust_firmware_dir=trust_firmware_dir)
+
+
+def _open(session: dict):
+    """(url, backend word, simavr bench or None): the port this run opens; prints the banner."""
+    bench, plan, port = session["bench"], session["plan"], session["port"]
+    speed, seed = session["speed"], session["seed"]
+    if port is None and bench.backend == "sim":
+        click.echo(f"tsa-bench: running '{plan.name}' on the SIMULATED bench ({bench.name}); no hardware is used")
+        return _sim_url(session["bench_file"], speed, seed), None
+    if port is None and bench.backend == "simavr":
+        fil = _start_simavr(bench, speed, seed, session["trust_firmware_dir"])
+        click.echo(f"tsa-bench: running '{plan.name}' on the firmware in simavr ({bench.name}); no hardware is used")
+        return fil.port_path, fil
+    url = port or bench.port
+    if not url:
+        fail(f"{bench.path}: backend is serial but no port is given (use --port)")
+    click.echo(f"tsa-bench: running '{plan.name}' on {url} at {bench.baud} baud ({bench.name})")
+    return url, None
+
+
+def _execute_run(session: dict, interrupts) -> int:
+    """Open the bench, run, summarise; return the exit code."""
+    import serial
+
+    from tsa_bench import transport  # noqa: F401  (registers the sim:// URL handler)
+    from tsa_bench.console.progress import ProgressDisplay
+    from tsa_bench.console.summary import format_run_info
+    from tsa_bench.device import BenchClient, DeviceError
+    from tsa_bench.protocol import msg
+    from tsa_bench.runner import AutoOperator, ConsoleOperator, PlanRejected, Runner, check_plan_against_device
+    from tsa_bench.store import RunFileError, RunWriter
+    from tsa_bench.store.inspect import inspect_run
+    from tsa_bench.store.live import LiveSidecar
+
+    bench, plan, path, resume = session["bench"], session["plan"], session["path"], session["resume"]
+    fil = None  # firmware in the loop (simavr)
+    with interrupts.immediate():
+        url, fil = _open(session)
+        click.echo(f"run file     {path}   (live view: tsa-bench watch {path})")
+        sys.stdout.flush()
+        try:
+            ser = serial.serial_for_url(url, baudrate=bench.baud, timeout=0.05, write_timeout=2.0)
+        except (serial.SerialException, ValueError, OSError) as exc:
+            if fil is not None:
+                fil.close()
+            fail(f"cannot open {url}: {exc}\n  check the device is plugged in, the port name "
+                 "(`tsa-bench ports`), and that no other program holds it", EXIT_FAILED)
+    writer = None
+    try:
+        with interrupts.immediate():
+            if fil is not None:
+                fil.start()  # release the emulated AVR from reset, as the DTR line does on a Mega
+            client = BenchClient(ser, ack_timeout_s=bench.ack_timeout_s, watchdog_s=bench.watchdog_s)
+            try:
+                ident = client.connect(bench.boot_timeout_s, baud=bench.baud)
+                check_plan_against_device(plan, ident)
+            except (DeviceError, PlanRejected) as exc:
+                fail(f"{exc}; nothing was run", EXIT_BAD_INPUT if isinstance(exc, PlanRejected) else EXIT_FAILED)
+            simulated = bool(ident.flags & msg.DeviceFlags.SIMULATED)
+            if fil is not None:
+                backend = "simavr"
+            elif simulated:
+                backend = "sim"
+            else:
+                backend = "serial"
+                if bench.plant:
+                    fail(f"{bench.path} describes a simulated bench (it has a plant section) but the device on "
+                         f"{url} is real hardware: use a serial bench file such as configs/bench/arduino-mega.yaml "
+                         "(or your calibrated copy); nothing was run")
+            operator = AutoOperator() if simulated else ConsoleOperator()
+            if resume is not None and not simulated:
+                _confirm_resume(resume)
+            writer = RunWriter(path)
+            if fil is not None:
+                from tsa_bench.simavr.operator import PlantOperator
+                operator = PlantOperator(fil)
+                operator.apply_initial(plan.load_g if resume is None else resume.load_g)
+        consumers = [writer, LiveSidecar(path), ProgressDisplay()]  # sidecar after the writer: tsa-bench watch
+        runner = Runner(client, plan, bench, consumers, operator, backend=backend, port_name=url,
+                        interrupts=interrupts, resume=resume, metadata=session["meta"])
+        stop = runner.run()
+    finally:
+        ser.close()
+        if fil is not None:
+            fil.close()
+            _report_simavr(fil)
+    if writer is not None and writer.broken:
+        # The HDF5 library failed a write: its state is broken and it would crash on exit.
+        click.echo(f"error: run failed: {writer.broken}; the samples are in {path}.live "
+                   "(tsa-bench watch reads it)", err=True)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(EXIT_FAILED)
+    if path.exists():
+        try:
+            click.echo(format_run_info(inspect_run(path)))
+        except RunFileError as exc:
+            click.echo(f"error: {exc}", err=True)
+        if resume is not None:
+            from tsa_bench.store.links import link_continuation
+
+            note = link_continuation(resume.source, path)
+            if note:
+                click.echo(f"warning: {note}", err=True)
+    rtf = stop.t_end / stop.wall_time_s if stop.wall_time_s > 0 else float("inf")
+    click.echo(f"wall time    {stop.wall_time_s:.2f} s (real-time factor {rtf:.0f})")
+    if stop.exit_status != "success" or (writer is not None and writer.full):
+        reason = writer.full if writer is not None and writer.full and stop.exit_status == "success" else stop.reason
+        status = "failed" if stop.exit_status == "success" else stop.exit_status
+        click.echo(f"run {status}: {reason}", err=True)
+        if status != "success":
+            click.echo(f"  to continue it later: tsa-bench run --resume {path}", err=True)
+    click.echo(f"wrote {path}" if path.exists() else f"no run file was written ({path})")
+    if writer is not None and writer.full and stop.exit_status == "success":
+        return EXIT_FAILED
+    return {"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED)
+
+
+def _confirm_resume(resume) -> None:
+    """On a real rig a person confirms the rig is ready for the resumed segment."""
+    load = "" if resume.load_g is None else f"; hang {resume.load_g:g} g"
+    click.echo(f"tsa-bench: {resume.describe()}", err=True)
+    try:
+        reply = input(f">>> The motor will move to {resume.turns:g} turns from where the device is now{load}. "
+                      "Continue? [y/N] ")
+    except EOFError:
+        reply = ""
+    if reply.strip().lower() not in ("y", "yes"):
+        fail("not confirmed; nothing was run")

@@ -1,0 +1,213 @@
+"""An open bench device for the rig commands: connect, read, move, heat, stop.
+
+Units: twist in turns, rates in turns/s and turns/s^2, voltage in V, time in s of
+device time (``t_us`` on the wire) unless a name says ``wall``.
+
+Contract: :func:`open_link` opens the port (serial device, ``sim://`` or any URL the
+port policy let through), waits for the boot announcement and completes the handshake
+(a device speaking another catalogue raises :class:`RigError` with the client's
+explanation). Everything here goes through :class:`~tsa_bench.device.BenchClient`:
+device commands outside any plan carry the segment ``NO_SEGMENT``. The link keeps the
+device's watchdog fed whenever it waits (:meth:`RigLink.pump`), converts what arrives
+with the bench calibration, and on :meth:`RigLink.close` sends STOP (motor halted,
+heater off) and turns sampling off, so a rig command that ends for any reason leaves
+the rig at rest.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from tsa_bench.bench import BenchConfig
+from tsa_bench.device import BenchClient, DeviceError
+from tsa_bench.protocol import msg
+from tsa_bench.runner.commands import NO_SEGMENT
+
+
+class RigError(RuntimeError):
+    """A rig command cannot go on; the message says what happened and what to check."""
+
+
+@dataclass
+class RigLink:
+    """A connected device (see the module contract)."""
+
+    client: BenchClient
+    bench: BenchConfig
+    port_name: str
+    on_message: Callable[[NamedTuple], None] | None = None   # sees every message read
+    t0_us: int | None = None
+    now_us: int = 0
+    fault: int = 0
+    last_status: msg.QueueStatus | None = None
+    _last_beat_wall: float = field(default_factory=time.monotonic)
+    _last_beat_us: int = 0
+
+    @property
+    def identity(self) -> msg.Identity:
+        assert self.client.identity is not None
+        return self.client.identity
+
+    @property
+    def simulated(self) -> bool:
+        return bool(self.identity.flags & msg.DeviceFlags.SIMULATED)
+
+    @property
+    def steps_per_turn(self) -> int:
+        return self.identity.steps_per_turn
+
+    def t_s(self, t_us: int) -> float:
+        """Device time (s) since this link began."""
+        return (t_us - (self.t0_us or 0)) / 1e6
+
+    # -- messages ------------------------------------------------------------
+    def _seen(self, m: NamedTuple) -> None:
+        t_us = getattr(m, "t_us", None)
+        if t_us is not None:
+            if self.t0_us is None:
+                self.t0_us = t_us
+            self.now_us = max(self.now_us, t_us)
+        if isinstance(m, msg.QueueStatus):
+            self.last_status = m
+            self.fault = m.fault
+        elif isinstance(m, msg.Event) and m.kind == msg.EventKind.FAULT:
+            self.fault = m.code
+        if self.on_message is not None:
+            self.on_message(m)
+
+    def pump(self) -> list[NamedTuple]:
+        """Read what arrived (handing each message to ``on_message``) and heartbeat."""
+        got = self.client.poll()
+        for m in got:
+            self._seen(m)
+        # every 1/16 watchdog of wall or device time (a simulation runs ahead of the wall clock)
+        beat_s = max(0.05, self.identity.watchdog_ms / 16000.0)
+        if (time.monotonic() - max(self._last_beat_wall, self.client.last_tx_wall) >= beat_s
+                or (self.now_us - self._last_beat_us) / 1e6 >= beat_s):
+            self.heartbeat()
+        return got
+
+    def heartbeat(self) -> None:
+        self.client.command(msg.Heartbeat(), check=False)
+        self._last_beat_wall = time.monotonic()
+        self._last_beat_us = self.now_us
+
+    def status(self) -> msg.QueueStatus:
+        """A fresh QUEUE_STATUS (HEARTBEAT and its answer)."""
+        self.last_status = None
+        self.heartbeat()
+        deadline = time.monotonic() + 2.0 + 2 * self.client.ack_timeout_s
+        while self.last_status is None:
+            self.pump()
+            if time.monotonic() > deadline:
+                raise RigError(f"the device on {self.port_name} did not report its status")
+        return self.last_status
+
+    # -- commands ------------------------------------------------------------
+    def queued(self, message: NamedTuple, what: str) -> None:
+        """One queued command (segment NO_SEGMENT); RigError when the device refuses it."""
+        ack = self.client.command(message, check=False)
+        while ack.status == msg.Status.QUEUE_FULL:
+            self.pump()
+            ack = self.client.command(message, check=False)
+        if ack.status != msg.Status.OK:
+            reason = msg.Status(ack.status).name.lower()
+            hint = ""
+            if ack.status == msg.Status.BAD_STATE:
+                hint = " (a fault is latched, or the device does not know its position yet: tsa-bench zero)"
+            raise RigError(f"the device refused {what}: {reason}{hint}")
+        for m in self.client.poll():  # what the device said before this command: not about it
+            self._seen(m)
+
+    def set_sampling(self, period_s: float, segment: int = NO_SEGMENT) -> None:
+        self.queued(msg.SetSampling(segment, round(period_s * 1e6)), "the sampling period")
+
+    def set_heater(self, voltage_V: float, segment: int = NO_SEGMENT) -> None:
+        self.queued(msg.SetHeater(segment, round(voltage_V * 1000)), f"heater {voltage_V:g} V")
+
+    def move_to(self, turns: float, rate_turns_per_s: float, accel_turns_per_s2: float,
+                segment: int = NO_SEGMENT) -> None:
+        spt = self.steps_per_turn
+        self.queued(msg.MoveTo(segment, round(turns * spt), max(1, round(rate_turns_per_s * spt)),
+                               max(1, round(accel_turns_per_s2 * spt))), f"the move to {turns:g} turns")
+
+    def wait_idle(self, timeout_s: float, should_stop: Callable[[], bool] | None = None) -> bool:
+        """Wait until the device has run everything queued; False if ``should_stop`` said
+        so first (the caller then STOPs). RigError on a fault or a timeout (wall time)."""
+        deadline = time.monotonic() + timeout_s
+        self.heartbeat()
+        while True:
+            for m in self.pump():
+                if isinstance(m, msg.QueueStatus) and not m.executing and m.queue_free == self.identity.queue_slots:
+                    return True
+                if isinstance(m, msg.Event) and m.kind == msg.EventKind.QUEUE_EMPTY:
+                    return True
+            if self.fault:
+                raise RigError(f"device fault: {msg.Fault(self.fault).name.lower()}")
+            if should_stop is not None and should_stop():
+                return False
+            if time.monotonic() > deadline:
+                raise RigError(f"the device on {self.port_name} did not finish within {timeout_s:g} s")
+
+    def samples(self, duration_s: float, on_sample: Callable[[msg.Sample], None] | None = None) -> list[msg.Sample]:
+        """The SAMPLEs of the next ``duration_s`` of device time (sampling must be on)."""
+        out: list[msg.Sample] = []
+        start: int | None = None
+        wall_deadline = time.monotonic() + duration_s * 3 + 5.0
+        while True:
+            for m in self.pump():
+                if isinstance(m, msg.Sample):
+                    start = m.t_us if start is None else start
+                    out.append(m)
+                    if on_sample is not None:
+                        on_sample(m)
+                    if (m.t_us - start) / 1e6 >= duration_s:
+                        return out
+            if self.fault:
+                raise RigError(f"device fault: {msg.Fault(self.fault).name.lower()}")
+            if time.monotonic() > wall_deadline:
+                raise RigError(f"no samples from the device on {self.port_name} for {duration_s * 3 + 5:g} s")
+
+    def stop(self) -> None:
+        """STOP: motor halted, heater off, queue cleared (best effort, never raises)."""
+        self.client.stop()
+
+    def close(self) -> None:
+        """Leave the rig at rest: STOP, sampling off (best effort)."""
+        try:
+            self.stop()
+            self.client.command(msg.SetSampling(NO_SEGMENT, 0), check=False)
+        except DeviceError:
+            pass
+
+
+@contextmanager
+def open_link(port: str, bench: BenchConfig, *, boot_timeout_s: float | None = None) -> Iterator[RigLink]:
+    """Open ``port``, handshake, yield a :class:`RigLink`; STOP and close at the end."""
+    import serial
+
+    from tsa_bench import transport  # noqa: F401  (registers sim://)
+
+    try:
+        ser = serial.serial_for_url(port, baudrate=bench.baud, timeout=0.05, write_timeout=2.0)
+    except (serial.SerialException, ValueError, OSError) as exc:
+        raise RigError(f"cannot open {port}: {exc}; check the device is plugged in, the port name "
+                       "(tsa-bench ports) and that no other program holds it") from None
+    try:
+        client = BenchClient(ser, ack_timeout_s=bench.ack_timeout_s, watchdog_s=bench.watchdog_s)
+        try:
+            client.connect(bench.boot_timeout_s if boot_timeout_s is None else boot_timeout_s, baud=bench.baud)
+        except DeviceError as exc:
+            raise RigError(str(exc)) from None
+        link = RigLink(client, bench, port)
+        try:
+            link.status()
+            yield link
+        finally:
+            link.close()
+    finally:
+        ser.close()

@@ -1,0 +1,35 @@
+"""Checks of a plan against the connected device, before anything moves."""
+
+from __future__ import annotations
+
+from tsa_bench.plan import Move, Plan
+from tsa_bench.protocol import msg
+
+
+class PlanRejected(ValueError):
+    """The plan does not fit the connected device's limits (nothing was sent)."""
+
+
+def check_plan_against_device(plan: Plan, ident: msg.Identity) -> None:
+    """Refuse a plan the device would refuse, before anything moves."""
+    spt = ident.steps_per_turn
+    problems = []
+    lo, hi = plan.summary().twist_range_turns
+    if round(hi * spt) > ident.max_twist_steps or round(lo * spt) < ident.min_twist_steps:
+        problems.append(f"twist range {lo:g}..{hi:g} turns exceeds the device's "
+                        f"{ident.min_twist_steps / spt:g}..{ident.max_twist_steps / spt:g} turns")
+    vmax = plan.summary().voltage_range_V[1]
+    if round(vmax * 1000) > ident.max_heater_mV:
+        problems.append(f"heater {vmax:g} V exceeds the device's {ident.max_heater_mV / 1000:g} V")
+    for seg in plan.segments:
+        a = seg.action
+        if isinstance(a, Move) and (round(a.rate_turns_per_s * spt) > ident.max_rate_steps_per_s
+                                    or round(a.accel_turns_per_s2 * spt) > ident.max_accel_steps_per_s2):
+            problems.append(f"{seg.source}: rate/acceleration beyond the device's maximum")
+            break
+    pmin = plan.summary().sampling_period_range_s[0]
+    if 0 < round(pmin * 1e6) < ident.min_sample_period_us:
+        problems.append(f"sampling period {pmin * 1000:g} ms is shorter than the device's "
+                        f"{ident.min_sample_period_us / 1000:g} ms")
+    if problems:
+        raise PlanRejected("; ".join(problems))

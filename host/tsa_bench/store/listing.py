@@ -1,0 +1,95 @@
+"""`tsa-bench ls DIR`: one line per run file in a folder, read from attributes only.
+
+Contract: :func:`list_runs` looks at the ``*.h5`` regular files directly in a folder
+(sorted by name, which starts with the run's date) and reads of each only its root
+attributes and the lengths of ``/samples/t`` and ``/segments`` (never the data, so a
+folder of long runs lists at once): status, plan, device duration, samples, segments
+completed, the link to a run it resumes or that continues it. A run whose live sidecar
+is still written by a living process is "recording"; a killed one (status "running",
+writer gone) is "killed". A file that is not a readable run file is listed with why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from tsa_bench.documents import DocumentError, check_regular_file
+from tsa_bench.store.hdf5 import FORMAT
+from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
+
+
+@dataclass(frozen=True)
+class RunLine:
+    path: Path
+    status: str
+    plan: str = ""
+    duration_s: float = float("nan")
+    samples: int = 0
+    segments: str = ""
+    created: str = ""
+    link: str = ""
+    problem: str = ""
+
+
+def _text(value) -> str:
+    if isinstance(value, bytes):
+        return value.decode(errors="replace")
+    if isinstance(value, np.generic):
+        return str(value.item())
+    return str(value)
+
+
+def _recording(path: Path) -> bool:
+    side = sidecar_path(path)
+    if not side.is_file():
+        return False
+    try:
+        tail = LiveTail(side)
+    except (LiveFormatError, OSError):
+        return False
+    try:
+        return bool(tail.writer_alive())
+    finally:
+        tail.close()
+
+
+def _one(path: Path) -> RunLine:
+    try:
+        check_regular_file(path, "run file")
+    except DocumentError as exc:
+        return RunLine(path, "?", problem=exc.message)
+    if _recording(path):
+        return RunLine(path, "recording", problem="being recorded (tsa-bench watch shows it)")
+    try:
+        with h5py.File(path, "r") as f:
+            a = f.attrs
+            if _text(a.get("format", "")) != FORMAT:
+                return RunLine(path, "?", problem="not a tsa-bench run file")
+            status = _text(a.get("exit_status", "?"))
+            samples = f["samples/t"].shape[0] if "samples/t" in f else 0
+            segs = ""
+            if "segments" in f and f["segments"].dtype.names and "completed" in f["segments"].dtype.names:
+                segs = str(int(np.count_nonzero(f["segments"]["completed"][()])))
+                if "n_segments" in a:
+                    segs += f"/{int(a['n_segments'])}"
+            duration = float(a["duration_s"]) if "duration_s" in a else (
+                float(f["samples/t"][-1]) if samples else float("nan"))
+            link = ""
+            if "resumed_from" in a:
+                link = f"resumes {_text(a['resumed_from'])} from segment {_text(a.get('first_segment', '?'))}"
+            if "continued_in" in a:
+                link = (link + "; " if link else "") + f"continued in {_text(a['continued_in'])}"
+            return RunLine(path, "killed" if status == "running" else status, _text(a.get("plan_name", "")),
+                           duration, samples, segs, _text(a.get("created", "")), link)
+    except Exception as exc:  # h5py reports damaged files with many exception types
+        return RunLine(path, "?", problem=f"not a readable HDF5 file ({type(exc).__name__})")
+
+
+def list_runs(folder: str | Path) -> list[RunLine]:
+    """Every ``*.h5`` run file directly in ``folder`` (module contract)."""
+    root = Path(folder)
+    return [_one(p) for p in sorted(root.glob("*.h5")) if not p.is_symlink() or p.exists()]
