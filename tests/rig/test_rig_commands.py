@@ -4,6 +4,7 @@ natively, both behind a pseudo-terminal as a Mega's serial port would be."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,7 @@ from click.testing import CliRunner
 from tests.rig.native_pty import NativeFirmwarePty
 from tsa_bench.bench import load_bench
 from tsa_bench.cli import main
+from tsa_bench.sim import SIM_FIRMWARE_VERSION
 from tsa_bench.store import read_run
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,6 +54,14 @@ def rig(request, tmp_path_factory):
         yield request.param, fw.path, _quick("arduino-mega.yaml", tmp)
 
 
+def _firmware_version(kind: str) -> str:
+    """The version the device under test reports: the simulated bench's, or firmware/config.h's."""
+    if kind == "sim-serve":
+        return ".".join(map(str, SIM_FIRMWARE_VERSION))
+    text = (ROOT / "firmware" / "config.h").read_text()
+    return ".".join(re.search(rf"FW_{part} = (\d+);", text).group(1) for part in ("MAJOR", "MINOR", "PATCH"))
+
+
 def _cli(*args: str, input: str | None = None):
     return CliRunner().invoke(main, list(args), input=input)
 
@@ -60,7 +70,7 @@ def test_check(rig):
     kind, port, bench = rig
     res = _cli("check", "--port", port, "--bench", str(bench), "--seconds", "1", "--live")
     assert res.exit_code == 0, res.output
-    assert "SIMULATED tsa-bench firmware 0.1.0" in res.output and "(matches this host)" in res.output
+    assert f"SIMULATED tsa-bench firmware {_firmware_version(kind)}" in res.output and "(matches this host)" in res.output
     assert "fault none" in res.output and "check: ok" in res.output
     cal = load_bench(bench)
     lines = [ln for ln in res.output.splitlines() if ln.startswith("sample ")]
@@ -76,7 +86,7 @@ def test_ports_lists_and_probes_a_given_port(rig):
     res = _cli("ports", "--also", port, "--probe", "--bench", str(bench))
     assert res.exit_code == 0, res.output
     assert f"{port}  no USB id  given with --also" in res.output
-    assert f"probe  {port}: OK, a simulated device, firmware 0.1.0" in res.output
+    assert f"probe  {port}: OK, a simulated device, firmware {_firmware_version(kind)}" in res.output
 
 
 def test_jog_script_is_recorded(rig, tmp_path):
@@ -148,3 +158,19 @@ def test_rig_commands_say_when_the_device_is_not_there(tmp_path):
     assert res.exit_code == 1 and "cannot open" in res.output and "tsa-bench ports" in res.output
     res = _cli("check", "--port", "spy://x?file=/tmp/y")
     assert res.exit_code == 2 and "--allow-url" in res.output
+
+
+def test_zero_declares_the_present_twist(rig):
+    kind, port, bench = rig
+    res = _cli("zero", "--port", port, "--bench", str(bench), input="n\n")
+    assert res.exit_code == 1 and "not confirmed; the device's position is unchanged" in res.output
+    res = _cli("zero", "--port", port, "--bench", str(bench), "--turns", "2", input="y\n")
+    assert res.exit_code == 0, res.output
+    assert "Is the TSA twisted by 2 turns now?" in res.output and "position set     2 turns (6400 steps)" in res.output
+    after = _cli("check", "--port", port, "--bench", str(bench), "--seconds", "0.3")
+    assert "twist 2 turns" in after.output, after.output        # the device counts from the declared twist
+    res = _cli("zero", "--port", port, "--bench", str(bench), "--yes")
+    assert res.exit_code == 0 and "device position  2 turns (6400 steps)" in res.output
+    assert "position set     0 turns (0 steps)" in res.output
+    res = _cli("zero", "--port", port, "--bench", str(bench), "--turns", "1e6", "--yes")
+    assert res.exit_code == 2 and "outside the bench's twist limits" in res.output

@@ -2,7 +2,7 @@
 
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
 - :mod:`.data`: info, ls, report, watch, import, export
-- :mod:`.rig`: ports, check, jog, zero, calibrate
+- :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
 - :mod:`.models`: fit, predict, manipulator
 - :mod:`.diagnose`: diagnose
 - :mod:`.reproduce`: reproduce
@@ -45,6 +45,7 @@ COMMANDS: dict[str, str] = {
     "check": "rig:check",
     "jog": "rig:jog",
     "calibrate": "calibrate:calibrate",
+    "zero": "zero:zero",
 }
 
 

@@ -79,6 +79,10 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
         try:
             with _open_or_exit(url, bench) as link:
                 device = device_text(link)
+                if turns:
+                    zeroed = link.require_position()
+                    if zeroed:
+                        click.echo(zeroed)
                 counts, refs, error = acquire(link, quantity, _ask, at_turns=turns, seconds=seconds,
                                               say=click.echo)
         except CalibrationError as exc:

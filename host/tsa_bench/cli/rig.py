@@ -217,6 +217,9 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
     try:
         with _open_or_exit(url, bench) as link:
             backend = "sim" if link.simulated else "serial"
+            note = link.require_position()
+            if note:
+                click.echo(note)
             session = JogSession(link, [RunWriter(path), LiveSidecar(path)], rate_turns_per_s=rate,
                                  heater_timeout_s=heater_timeout_s, backend=backend, say=click.echo)
             session.start()

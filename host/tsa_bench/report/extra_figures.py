@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from tsa_bench.report.diagnose_report import decimate_minmax
-from tsa_bench.report.fig_common import DPI, pyplot, time_scale, title
+from tsa_bench.report.fig_common import DPI, pyplot, save, time_scale, title
 from tsa_bench.runner.documents import SAMPLE_COLUMNS
 from tsa_bench.store import RunData
 
@@ -40,7 +40,7 @@ def _label(run: RunData, name: str) -> str:
     return f"{name} ({unit})" if unit else name
 
 
-def fig_extras(run: RunData, path: Path) -> str | None:
+def fig_extras(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     """Every extra column against device time."""
     names = extra_columns(run)[:MAX_PANELS]
     if not names or len(run) == 0:
@@ -57,14 +57,14 @@ def fig_extras(run: RunData, path: Path) -> str | None:
     axes[-1, 0].set_xlabel(xlabel)
     title(fig, "Extra channels", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     more = len(extra_columns(run)) - len(names)
     return ("Columns beyond the contract, with their units: " + ", ".join(_label(run, n) for n in names)
             + (f" (and {more} more, not drawn)" if more > 0 else "") + ".")
 
 
-def fig_extras_xy(run: RunData, path: Path) -> str | None:
+def fig_extras_xy(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     """Pairs of extra columns against each other, coloured by sample order."""
     names = extra_columns(run)
     pairs = list(combinations(names, 2))[:MAX_PAIRS]
@@ -83,7 +83,7 @@ def fig_extras_xy(run: RunData, path: Path) -> str | None:
     fig.colorbar(sc, ax=axes[0, -1], label="sample index")
     title(fig, "Extra channels against each other", run)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save(fig, path, dpi)
     plt.close(fig)
     return ("Pairs of extra columns, colour = sample order (a loop shows hysteresis): "
             + "; ".join(f"{b} vs {a}" for a, b in pairs) + ".")

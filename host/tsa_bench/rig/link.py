@@ -107,6 +107,37 @@ class RigLink:
                 raise RigError(f"the device on {self.port_name} did not report its status")
         return self.last_status
 
+    def position_known(self) -> bool:
+        """Whether the device knows the motor's step position (no ``position_unknown`` bit)."""
+        return not self.status().state & msg.DeviceState.POSITION_UNKNOWN
+
+    def require_position(self) -> str | None:
+        """Make sure moves will be accepted: the device must know its position.
+
+        A simulated device that does not know it is told 0 (its plant starts untwisted),
+        and the returned note says so; a real one raises :class:`RigError` pointing to
+        ``tsa-bench zero``. Returns None when the position was already known."""
+        if self.position_known():
+            return None
+        if not self.simulated:
+            raise RigError("the device does not know the motor's position (it powered up, reset while moving, or "
+                           "released the motor): hang the TSA untwisted and run `tsa-bench zero` (or "
+                           "`tsa-bench zero --turns N` when you know its twist), then try again; nothing moved")
+        self.set_position(0.0)
+        return "the simulated device did not know its position: its untwisted start is the twist zero"
+
+    def set_position(self, turns: float) -> int:
+        """SET_POSITION: declare the motor is at ``turns`` now. Returns the steps sent;
+        RigError when the device refuses (a move running, or beyond its twist limits)."""
+        steps = round(turns * self.steps_per_turn)
+        ack = self.client.command(msg.SetPosition(steps), check=False)
+        if ack.status != msg.Status.OK:
+            raise RigError(f"the device refused to set its position to {turns:g} turns: "
+                           f"{msg.Status(ack.status).name.lower()}")
+        for m in self.client.poll():
+            self._seen(m)
+        return steps
+
     # -- commands ------------------------------------------------------------
     def queued(self, message: NamedTuple, what: str) -> None:
         """One queued command (segment NO_SEGMENT); RigError when the device refuses it."""

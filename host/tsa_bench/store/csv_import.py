@@ -62,7 +62,7 @@ from tsa_bench.documents import DocumentError, read_text_file
 from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
 from tsa_bench.store.hdf5 import CHUNK, RunWriter
 from tsa_bench.store.reader import MAX_ABS_VALUE
-from tsa_bench.units import CHANNELS, UnitError, channel_conversion
+from tsa_bench.units import CHANNELS, UnitError, channel_conversion, units_of
 
 _HEADER_UNIT = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 _EXTRA_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
@@ -312,10 +312,14 @@ def import_csv(csv_path: str | Path, out_path: str | Path, mapping: dict[str, st
         name, head_unit = _split_header(header[i])
         unit = units.get(target, units.get(header[i], units.get(name, head_unit or _name_unit(target, name))))
         if not unit and _needs_unit(target):
-            stored_unit = CHANNELS[target].unit if target in CHANNELS else "UNIT"
-            unitless.append(f"{src}:{header_line}: column '{header[i]}' ({target}) has no unit: give it in the "
-                            f"header ('{name} [{stored_unit}]') or with --units {target}=UNIT "
-                            f"(use 1 for a pure number)")
+            where = f"{src}:{header_line}: column '{header[i]}' ({target})"
+            if target in CHANNELS:
+                accepted = units_of(CHANNELS[target].dimension) + (["g", "kg"] if target == "load" else [])
+                unitless.append(f"{where} has no unit: give it in the header ('{name} [{CHANNELS[target].unit}]') "
+                                f"or with --units {target}=UNIT ({', '.join(accepted)})")
+            else:
+                unitless.append(f"{where}: extra column {target} has no unit; give one in the header "
+                                f"('{name} [unit]') or with --units {target}=UNIT (use 1 for a pure number)")
             continue
         f, o, stored[target] = _conversion(target, unit, f"{src}:{header_line}: column '{header[i]}' ({target})")
         conversions[target] = (f, o)
