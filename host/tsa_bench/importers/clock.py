@@ -23,6 +23,10 @@ from tsa_bench.importers.errors import ImportFileError
 MODES = ("error", "sort", "drop")
 
 
+def _rows(n: int) -> str:
+    return f"{n} row{'' if n == 1 else 's'}"
+
+
 def _late(t: np.ndarray) -> np.ndarray:
     """Mask of rows whose time is not after the running maximum of the rows before."""
     late = np.zeros(len(t), bool)
@@ -47,7 +51,7 @@ def order_rows(t: np.ndarray, mode: str, line: Callable[[int], str], column: str
     if mode == "drop":
         keep = np.flatnonzero(~late)
         return keep, {"mode": "drop", "rows_affected": n_late, "rows_dropped": n_late, **first,
-                      "said": f"dropped {n_late} rows whose time was not after the rows before "
+                      "said": f"dropped {_rows(n_late)} whose time was not after the rows before "
                               f"(first at {line(k)})"}
     order = np.argsort(t, kind="stable")
     ts = t[order]
@@ -57,7 +61,7 @@ def order_rows(t: np.ndarray, mode: str, line: Callable[[int], str], column: str
     keep = order[~dup]
     n_dup = int(dup.sum())
     return keep, {"mode": "sort", "rows_affected": n_late, "rows_moved": n_moved, "rows_dropped": n_dup, **first,
-                  "said": f"sorted by time: {n_moved} rows moved, {n_dup} rows repeating an earlier time dropped "
+                  "said": f"sorted by time: {_rows(n_moved)} moved, {_rows(n_dup)} repeating an earlier time dropped "
                           f"(first out of order at {line(k)})"}
 
 
