@@ -94,6 +94,9 @@ def resolve(table: SourceTable, mapping: dict[str, str] | None, timed: bool,
                                       f"columns are: {', '.join(table.names)}")
             raise ImportFileError(f"{table.path}: no column {ref!r} (mapped to {target}): the file has no header; "
                                   f"name columns by position 1..{len(table.columns)}, e.g. --map t=1")
+        if i in reserved:
+            raise ImportFileError(f"--map {target}={ref}: column {table.label(i)} is the segment column "
+                                  "(--segments column=...); it cannot also be mapped")
         chosen.append(Choice(target, i, "mapped"))
         taken[i] = target
     left: dict[int, str] = {}
