@@ -132,6 +132,9 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
     if rate:
         lines.append(f"sample rate {rate['rate_hz']:.6g} Hz (median interval {rate['interval_s']:.6g} s, jitter "
                      f"{rate['jitter_rms_s']:.3g} s rms, largest interval {rate['largest_interval_s']:.6g} s)")
+    if "load" in data and len(np.unique(data["load"][np.isfinite(data["load"])])) > 20:
+        lines.append("note: the declared load takes more than 20 values: if it is a measured force (a load cell), "
+                     "map it as force (--map force=COLUMN); fit counts every declared load")
     extras = {k: (data.pop(k), c.stored) for c in chosen for k in [c.target] if k not in SAMPLE_COLUMNS}
     samples = fill(data, n)
     thr = {**segs.DEFAULTS, **o.thresholds}
