@@ -12,7 +12,7 @@ from tsa_bench.store import read_run
 def _load_cell_csv(tmp_path, header: str):
     rng = np.random.default_rng(3)
     t = np.arange(300) * 0.1
-    turns = np.minimum(t, 10.0) * 2
+    turns = np.floor(t / 3.0) * 2  # ten holds
     length = 250 - 0.8 * turns + rng.normal(0, 0.01, 300)
     force = 2.0 + 0.05 * turns + rng.normal(0, 0.003, 300)
     src = tmp_path / "cell.csv"
