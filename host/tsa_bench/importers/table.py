@@ -35,6 +35,7 @@ class SourceTable:
     has_header: bool = True
     notes: list[str] = field(default_factory=list)
     time_s: np.ndarray | None = None  # time the format carries apart from the columns (TDMS waveforms)
+    row_prefix: str = ""  # before the row number in messages: "sheet 'Data' row ", "row "
 
     @property
     def n_rows(self) -> int:
@@ -46,8 +47,8 @@ class SourceTable:
 
     def where(self, row: int | None = None) -> str:
         if row is None:
-            return f"{self.path}:{self.header_line}" if self.header_line else str(self.path)
-        return f"{self.path}:{int(self.row_lines[row])}"
+            return f"{self.path}:{self.row_prefix}{self.header_line}" if self.header_line else str(self.path)
+        return f"{self.path}:{self.row_prefix}{int(self.row_lines[row])}"
 
     def label(self, i: int) -> str:
         """How column ``i`` is named in messages: its header text, or its 1-based position."""
