@@ -47,6 +47,8 @@ def split_header(cell: str) -> tuple[str, str]:
 
 def target_of(name: str) -> str | None:
     """The contract column or channel a column name stands for (case-insensitive, synonyms), or None."""
+    if len(name.strip()) == 1:  # one letter: case matters (t is time, T a temperature: see SYMBOLS)
+        return name.strip() if name.strip() in CHANNELS else None
     low = name.strip().lower()
     for cand in (low, low.replace(" ", "_")):
         if cand in CHANNELS:

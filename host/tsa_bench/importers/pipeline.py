@@ -104,6 +104,8 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
         raise ImportFileError(f"--segment-threshold: unknown {', '.join(sorted(unknown))} "
                               f"(known: {', '.join(segs.DEFAULTS)})")
     table = read_source(src, o)
+    if table.n_rows == 0:
+        raise ImportFileError(f"{table.path}: no data rows" + (" after the header" if table.has_header else ""))
     seg_mode, seg_index = _segment_spec(o.segments, table)
     timed = o.sample_period_s is None
     chosen, left = resolve(table, o.mapping, timed, (seg_index,) if seg_index is not None else ())

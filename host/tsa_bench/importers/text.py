@@ -20,6 +20,7 @@ Contract of :func:`read_text`:
 from __future__ import annotations
 
 import csv
+import io
 import re
 from collections import Counter
 from pathlib import Path
@@ -110,19 +111,58 @@ def layout(records: list[tuple[int, list[str]]], no_header: bool, decimal_comma:
     return first + 1, [c.strip() for c in cells], width, notes
 
 
+def _fast(data: str, delim: str, decimal_comma: bool, width: int, cols: list[int]) -> np.ndarray | None:
+    """The numeric columns ``cols`` of the data lines parsed in one C pass (numpy's loadtxt), or None
+    when the text needs the careful path: quotes, comment or blank lines, rows of another width, a
+    cell that is not a number (the careful path then names each one)."""
+    if not cols or '"' in data or re.search(r"^[ \t]*(?:$|#|%|//)", data.rstrip("\n"), re.M):
+        return None
+    n_lines = data.count("\n") + (0 if data.endswith("\n") else 1)
+    if delim != " ":
+        if data.count(delim) != n_lines * (width - 1):
+            return None
+        for _ in range(2):  # empty cells are NaN: ",," -> ",nan,", also at the start and end of a line
+            data = data.replace(delim + delim, f"{delim}nan{delim}")
+        data = data.replace("\n" + delim, f"\nnan{delim}").replace(delim + "\n", f"{delim}nan\n")
+        if data.startswith(delim):
+            data = "nan" + data
+        if data.endswith(delim):
+            data += "nan"
+    if decimal_comma:
+        data = data.replace(",", ".")
+    try:
+        out = np.loadtxt(io.StringIO(data), delimiter=None if delim == " " else delim, usecols=cols, ndmin=2,
+                         comments=None, dtype=np.float64, quotechar=None)
+    except ValueError:
+        return None
+    return out if len(out) == n_lines else None
+
+
+def _lines(text: str, limit: int) -> tuple[list[str], list[int]]:
+    """The first lines of ``text`` up to ``limit`` content lines, and the offset where each starts."""
+    lines, starts, pos, found = [], [], 0, 0
+    while pos < len(text) and found < limit:
+        j = text.find("\n", pos)
+        j = len(text) if j < 0 else j
+        line = text[pos:j].rstrip("\r")
+        lines.append(line)
+        starts.append(pos)
+        pos = j + 1
+        if line.strip() and not is_comment(line):
+            found += 1
+    starts.append(min(pos, len(text)))
+    return lines, starts
+
+
 def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
               decimal: str | None = None) -> SourceTable:
     """Read a delimited text file (module contract) into a :class:`SourceTable`."""
     text, notes = decode(path)
-    lines = text.splitlines()
-    del text
-    content = []
-    for i, line in enumerate(lines):
-        if line.strip() and not is_comment(line):
-            content.append(i)
-            if len(content) >= 40:
-                break
-    sample = [lines[i] for i in content]
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    head, offsets = _lines(text, 40)
+    content = [i for i, line in enumerate(head) if line.strip() and not is_comment(line)]
+    sample = [head[i] for i in content]
     delim = delimiter if delimiter is not None else choose_delimiter(sample)
     if delim in ("tab", "\\t"):
         delim = "\t"
@@ -140,39 +180,61 @@ def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
     first, header, width, more = layout(records, no_header, decimal_comma, path)
     notes += more
     notes.append(f"delimiter {_NAMES.get(delim, repr(delim))}" + (", decimal comma" if decimal_comma else ""))
-    start = records[first][0] - 1 if first < len(records) else (content[-1] + 1 if content else len(lines))
+    start = records[first][0] - 1 if first < len(records) else len(head)
     header_line = records[first - 1][0] if header is not None else None
+    names = header if header is not None else [""] * width
+    data = text[offsets[start]:] if start < len(offsets) else ""
+    del text
+    # columns whose first cells are numbers take the fast path; the others keep their first bad cells
+    probe = [c for _, c in records[first:] if len(c) == width]
+    numeric = [i for i in range(width) if all(_is_number(c[i], decimal_comma) or not c[i].strip() for c in probe)]
+    fast = _fast(data, delim, decimal_comma, width, numeric) if data.strip() else None
+    if fast is not None:
+        n = len(fast)
+        columns = []
+        for i in range(width):
+            if i in numeric:
+                columns.append(Column(names[i], np.ascontiguousarray(fast[:, numeric.index(i)])))
+            else:
+                vals, bad, n_bad = numbers([c[i] for c in probe])
+                columns.append(Column(names[i], np.full(n, np.nan), bad, max(n_bad, 1)))
+        return SourceTable(path, "text", columns, np.arange(start + 1, start + 1 + n), header_line,
+                           header is not None, notes)
+    return _careful(path, data.splitlines(), start, split, width, names, header is not None, header_line,
+                    decimal_comma, notes)
+
+
+def _careful(path: Path, lines: list[str], start: int, split: Callable, width: int, names: list[str],
+             has_header: bool, header_line: int | None, decimal_comma: bool, notes: list[str]) -> SourceTable:
+    """Line by line (csv module), naming every row of the wrong width and keeping bad cells per column."""
     parts: list[list[np.ndarray]] = [[] for _ in range(width)]
     bad: list[list[tuple[int, str]]] = [[] for _ in range(width)]
     n_bad = [0] * width
     row_lines: list[np.ndarray] = []
     errors: list[str] = []
     n_done = 0
-    for c0 in range(start, len(lines), _CHUNK):
+    for c0 in range(0, len(lines), _CHUNK):
         chunk = lines[c0:c0 + _CHUNK]
         keep = [k for k, ln in enumerate(chunk) if ln.strip() and not is_comment(ln)]
-        if len(keep) != len(chunk):
-            chunk = [chunk[k] for k in keep]
-        else:
-            keep = None
+        chunk = [chunk[k] for k in keep]
         try:
             rows = list(split(chunk))
         except csv.Error as exc:
-            raise ImportFileError(f"{path}: not valid delimited text after line {c0}: {exc}") from None
-        nums = np.arange(len(rows)) if keep is None else np.asarray(keep)
+            raise ImportFileError(f"{path}: not valid delimited text after line {start + c0}: {exc}") from None
         if len(rows) != len(chunk):
-            raise ImportFileError(f"{path}:{c0 + 1}: a quoted cell spans lines; data rows must be one line each")
+            raise ImportFileError(f"{path}:{start + c0 + 1}: a quoted cell spans lines; data rows must be one line each")
+        nums = np.asarray(keep, int) + start + c0 + 1
         good = [k for k, r in enumerate(rows) if len(r) == width]
         if len(good) != len(rows):
-            what = "the header has" if header is not None else "the first data line has"
+            what = "the header has" if has_header else "the first data line has"
             for k, r in enumerate(rows):
                 if len(r) != width and len(errors) < 20:
-                    errors.append(f"{path}:{c0 + int(nums[k]) + 1}: {len(r)} cells, {what} {width}")
+                    errors.append(f"{path}:{int(nums[k])}: {len(r)} cells, {what} {width}")
             rows = [rows[k] for k in good]
             nums = nums[good]
         if errors:
             continue
-        row_lines.append(nums + c0 + 1)
+        row_lines.append(nums)
         cols = list(zip(*rows)) if rows else [()] * width
         for i in range(width):
             vals, b, nb = numbers(list(cols[i]), decimal_comma)
@@ -183,8 +245,7 @@ def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
         n_done += len(rows)
     if errors:
         raise ImportFileError("\n".join(errors) + (" (stopped after the first errors)" if len(errors) >= 20 else ""))
-    names = header if header is not None else [""] * width
     columns = [Column(names[i], np.concatenate(parts[i]) if parts[i] else np.empty(0), bad[i], n_bad[i])
                for i in range(width)]
     return SourceTable(path, "text", columns, np.concatenate(row_lines) if row_lines else np.empty(0, int),
-                       header_line, header is not None, notes)
+                       header_line, has_header, notes)
