@@ -57,11 +57,12 @@ def infer(s: dict[str, np.ndarray], moving: np.ndarray, thresholds: dict[str, fl
     mv = moving.astype(bool)
     change = np.zeros(n, bool)
     change[0] = True
+    hstep, lstep = np.zeros(n, bool), np.zeros(n, bool)  # a step into row k
     if n > 1:
         change[1:] |= mv[1:] != mv[:-1]
-        hstep = _steps(heater, thresholds["heater_V"])
-        lstep = _steps(load, thresholds["load_N"])
-        change[1:] |= hstep | lstep
+        hstep[1:] = _steps(heater, thresholds["heater_V"]) if heater is not None else False
+        lstep[1:] = _steps(load, thresholds["load_N"]) if load is not None else False
+        change |= hstep | lstep
     starts = np.flatnonzero(change)
     if len(starts) < 2:
         return np.full(n, -1, "i4"), []
@@ -75,8 +76,7 @@ def infer(s: dict[str, np.ndarray], moving: np.ndarray, thresholds: dict[str, fl
             p["load_N"] = float(load[a])
         if "turns" in s:
             p["turns_start"], p["turns_end"] = float(s["turns"][a]), float(s["turns"][b - 1])
-        heater_step = a > 0 and heater is not None and bool(_steps(heater[a - 1:a + 1], thresholds["heater_V"])[0])
-        load_step = a > 0 and load is not None and bool(_steps(load[a - 1:a + 1], thresholds["load_N"])[0])
+        heater_step, load_step = bool(hstep[a]), bool(lstep[a])
         if load_step:
             p["load_change"] = True
         kinds.append("move" if mv[a] else "heater" if heater_step else "hold")

@@ -115,15 +115,21 @@ def _fast(data: str, delim: str, decimal_comma: bool, width: int, cols: list[int
     """The numeric columns ``cols`` of the data lines parsed in one C pass (numpy's loadtxt), or None
     when the text needs the careful path: quotes, comment or blank lines, rows of another width, a
     cell that is not a number (the careful path then names each one)."""
-    if not cols or '"' in data or re.search(r"^[ \t]*(?:$|#|%|//)", data.rstrip("\n"), re.M):
-        return None
+    body = data.rstrip("\n")
+    if not cols or '"' in body or "\n\n" in body or body[:1] in "#%/ \t" or any(
+            f"\n{c}" in body for c in ("#", "%", "//", " ", "\t")):
+        return None  # quotes, blank, comment or indented lines: the careful path
     n_lines = data.count("\n") + (0 if data.endswith("\n") else 1)
     if delim != " ":
         if data.count(delim) != n_lines * (width - 1):
             return None
         for _ in range(2):  # empty cells are NaN: ",," -> ",nan,", also at the start and end of a line
-            data = data.replace(delim + delim, f"{delim}nan{delim}")
-        data = data.replace("\n" + delim, f"\nnan{delim}").replace(delim + "\n", f"{delim}nan\n")
+            if delim + delim in data:
+                data = data.replace(delim + delim, f"{delim}nan{delim}")
+        if "\n" + delim in data:
+            data = data.replace("\n" + delim, f"\nnan{delim}")
+        if delim + "\n" in data:
+            data = data.replace(delim + "\n", f"{delim}nan\n")
         if data.startswith(delim):
             data = "nan" + data
         if data.endswith(delim):
@@ -194,7 +200,7 @@ def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
         columns = []
         for i in range(width):
             if i in numeric:
-                columns.append(Column(names[i], np.ascontiguousarray(fast[:, numeric.index(i)])))
+                columns.append(Column(names[i], fast[:, numeric.index(i)]))
             else:
                 vals, bad, n_bad = numbers([c[i] for c in probe])
                 columns.append(Column(names[i], np.full(n, np.nan), bad, max(n_bad, 1)))
