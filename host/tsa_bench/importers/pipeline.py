@@ -26,6 +26,7 @@ from tsa_bench.importers import clock, segments as segs
 from tsa_bench.importers.columns import Choice, resolve, units_for
 from tsa_bench.importers.detect import read_source
 from tsa_bench.importers.errors import ImportFileError
+from tsa_bench.importers.headers import same_unit
 from tsa_bench.importers.values import converted
 from tsa_bench.importers.writer import fill, start_record, write_run
 from tsa_bench.runner.documents import SAMPLE_COLUMNS
@@ -82,7 +83,7 @@ def _describe(table: Any, chosen: list[Choice], left: dict[int, str]) -> list[st
         label = f"column {table.label(i)}"
         if i in by_index:
             c = by_index[i]
-            conv = f"{c.unit}" + (f" -> {c.stored}" if c.stored and c.stored != c.unit else "")
+            conv = f"{c.unit}" + (f" -> {c.stored}" if c.stored and not same_unit(c.stored, c.unit) else "")
             out.append(f"  {label} -> {c.target} ({c.kind}, {c.how}) [{conv or '1'}]")
         else:
             out.append(f"  {label} left out: {left.get(i, 'not used')}")
