@@ -25,7 +25,7 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_format_imports_and_is_accepted_by_info_fit_and_report(tmp_path, case):
+def test_format_imports_and_is_accepted_by_info_fit_report_and_diagnose(tmp_path, case):
     name, write, args = CASES[case]
     src = write(tmp_path / name)
     out = tmp_path / "run.h5"
@@ -47,6 +47,8 @@ def test_format_imports_and_is_accepted_by_info_fit_and_report(tmp_path, case):
     assert e < 0.05  # a cubic follows the quadratic staircase to the noise
     rep = CliRunner().invoke(main, ["report", str(out), "--out", str(tmp_path / "rep")])
     assert rep.exit_code == 0, rep.output
+    diag = CliRunner().invoke(main, ["diagnose", str(out), "--out", str(tmp_path / "dg"), "-q"])
+    assert diag.exit_code == 0 and "VERDICT" in diag.output and "no segments" not in diag.output, diag.output
 
 
 def test_sheet_var_and_group_errors_list_what_there_is(tmp_path):
