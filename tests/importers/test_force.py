@@ -38,6 +38,10 @@ def test_a_load_cell_column_is_force_not_load(tmp_path):
     as_io = CliRunner().invoke(main, ["fit", "polynomial", str(tmp_path / "c.h5"), "--input", "turns",
                                       "--output", "force", "--out", str(tmp_path / "f.json")])
     assert as_io.exit_code == 0, as_io.output
+    diag = CliRunner().invoke(main, ["diagnose", str(tmp_path / "c.h5"), "--outputs", "length", "-q",
+                                     "--out", str(tmp_path / "dg")])
+    assert diag.exit_code == 0, diag.output
+    assert diag.output.splitlines()[0].startswith(f"diagnose: note: {tmp_path / 'c.h5'} has a measured force")
 
 
 def test_a_force_mapped_as_load_is_flagged(tmp_path):
