@@ -81,3 +81,21 @@ def test_partial_map_keeps_the_automatic_pick_up(tmp_path):
     meta = json.loads(run.attrs["metadata"])
     assert meta["column_map"]["length"] == "lvdt" and meta["source_units"]["t"] == "ms"
     assert "comment" in meta["columns_left_out"]
+
+
+def test_fast_and_careful_paths_read_the_same_values(tmp_path):
+    rng = np.random.default_rng(5)
+    rows = [f"{i * 0.01!r},{float(v)!r},{'' if i % 7 == 3 else repr(float(w))},x{i}" for i, (v, w) in
+            enumerate(zip(rng.normal(250, 1, 500), rng.normal(5, 0.1, 500)))]
+    plain = "t [s],length [mm],resistance [ohm],tag\n" + "\n".join(rows) + "\n"
+    commented = plain.replace(rows[200], "# operator pause\n" + rows[200])  # a comment line: the careful path
+    a, out_a = _import(tmp_path, plain, name="plain.csv", out="a.h5")
+    b, out_b = _import(tmp_path, commented, name="commented.csv", out="b.h5")
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    sa, sb = read_run(out_a).samples, read_run(out_b).samples
+    for name in ("t", "length", "resistance"):
+        assert np.array_equal(sa[name], sb[name], equal_nan=True), name
+    assert np.isnan(sa["resistance"][3]) and np.isfinite(sa["resistance"][4])
+    bad = plain.replace(rows[300], rows[300].replace(",", ",oops", 1))
+    c, out_c = _import(tmp_path, bad, name="bad.csv", out="c.h5")
+    assert c.exit_code == 2 and "bad.csv:302: column 'length [mm]' (length): cannot parse 'oops" in c.output

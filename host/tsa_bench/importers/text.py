@@ -120,6 +120,8 @@ def _fast(data: str, delim: str, decimal_comma: bool, width: int, cols: list[int
             f"\n{c}" in body for c in ("#", "%", "//", " ", "\t")):
         return None  # quotes, blank, comment or indented lines: the careful path
     n_lines = data.count("\n") + (0 if data.endswith("\n") else 1)
+    if delim == " " and len(cols) != width:
+        return None  # blank-separated: loadtxt checks every row's width only when it reads every column
     if delim != " ":
         if data.count(delim) != n_lines * (width - 1):
             return None
@@ -137,7 +139,8 @@ def _fast(data: str, delim: str, decimal_comma: bool, width: int, cols: list[int
     if decimal_comma:
         data = data.replace(",", ".")
     try:
-        out = np.loadtxt(io.StringIO(data), delimiter=None if delim == " " else delim, usecols=cols, ndmin=2,
+        out = np.loadtxt(io.StringIO(data), delimiter=None if delim == " " else delim,
+                         usecols=None if delim == " " else cols, ndmin=2,
                          comments=None, dtype=np.float64, quotechar=None)
     except ValueError:
         return None
