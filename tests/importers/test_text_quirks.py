@@ -99,3 +99,12 @@ def test_fast_and_careful_paths_read_the_same_values(tmp_path):
     bad = plain.replace(rows[300], rows[300].replace(",", ",oops", 1))
     c, out_c = _import(tmp_path, bad, name="bad.csv", out="c.h5")
     assert c.exit_code == 2 and "bad.csv:302: column 'length [mm]' (length): cannot parse 'oops" in c.output
+
+
+def test_compound_and_dash_units_that_reduce_to_the_channel(tmp_path):
+    res, out = _import(tmp_path, "t [s],strain [mm/mm],eps [-]\n0,0.01,0.02\n1,0.02,0.03\n")
+    assert res.exit_code == 0, res.output
+    run = read_run(out)
+    assert np.allclose(run.samples["strain"], [0.01, 0.02]) and run.units["strain"] == "1"
+    assert np.allclose(run.samples["eps"], [0.02, 0.03]) and run.units["eps"] == "-"
+    assert "column 'strain [mm/mm]' -> strain (extra column, picked up) [mm/mm]" in res.output

@@ -28,7 +28,7 @@ from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.importers.headers import guess_target, name_unit, same_unit, split_header, suffix_unit
 from tsa_bench.importers.table import SourceTable
 from tsa_bench.runner.documents import SAMPLE_COLUMNS
-from tsa_bench.units import CHANNELS, UnitError, channel_conversion, units_of
+from tsa_bench.units import CHANNELS, DIMENSIONS, UnitError, channel_conversion, parse_unit, units_of
 
 EXTRA_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
 
@@ -145,9 +145,13 @@ def resolve(table: SourceTable, mapping: dict[str, str] | None, timed: bool,
 
 def _conversion(target: str, unit: str, where: str) -> tuple[float, float, str]:
     if target in CHANNELS:
+        unit = "1" if unit.strip() in ("-", "[-]") else unit
         try:
             f, o = channel_conversion(target, unit)
         except UnitError as exc:
+            reduced = _reduced(target, unit)  # mm/mm for a strain, N*m/m for a force ...
+            if reduced is not None:
+                return reduced, 0.0, CHANNELS[target].unit
             allowed = str(exc).split("use one of: ", 1)[-1]
             raise ImportFileError(f"{where}: unit '{unit}' is not known for {target} "
                                   f"({CHANNELS[target].dimension}); use one of: {allowed}") from None
@@ -158,6 +162,19 @@ def _conversion(target: str, unit: str, where: str) -> tuple[float, float, str]:
             raise ImportFileError(f"{where}: unit '{unit}' is not known for {target}; use one of: {contract}")
         return 1.0, 0.0, contract
     return 1.0, 0.0, unit
+
+
+def _reduced(target: str, unit: str) -> float | None:
+    """The factor of a compound unit that reduces to ``target``'s dimension (``mm/mm`` for a strain), or None."""
+    ch = CHANNELS[target]
+    try:
+        u = parse_unit(unit)
+    except UnitError:
+        return None
+    want = () if ch.dimension == "dimensionless" else ((ch.dimension, 1),)
+    if u.signature != want or u.offset:
+        return None
+    return u.factor / DIMENSIONS[ch.dimension][ch.unit][0]
 
 
 def _needs_unit(target: str) -> bool:

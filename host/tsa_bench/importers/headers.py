@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 
+from tsa_bench.runner.documents import SAMPLE_COLUMNS
 from tsa_bench.units import CHANNELS, UnitError, channel_conversion, parse_unit
 
 _BRACKETS = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
@@ -51,7 +52,7 @@ def target_of(name: str) -> str | None:
         return name.strip() if name.strip() in CHANNELS else None
     low = name.strip().lower()
     for cand in (low, low.replace(" ", "_")):
-        if cand in CHANNELS:
+        if cand in CHANNELS or cand in SAMPLE_COLUMNS:
             return cand
         if cand in SYNONYMS:
             return SYNONYMS[cand]
