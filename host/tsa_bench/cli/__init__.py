@@ -1,7 +1,7 @@
 """Command line: the `tsa-bench` group, one module per family of commands.
 
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
-- :mod:`.data`: info, ls, report, watch, import, export
+- :mod:`.data`: info, ls, report, watch, export; :mod:`.importing`: import
 - :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
 - :mod:`.models`: fit, predict, manipulator
 - :mod:`.diagnose`: diagnose
@@ -34,7 +34,7 @@ COMMANDS: dict[str, str] = {
     "ls": "data:ls_cmd",
     "report": "data:report",
     "watch": "data:watch",
-    "import": "data:import_cmd",
+    "import": "importing:import_cmd",
     "export": "data:export",
     "fit": "models:fit_cmd",
     "predict": "models:predict_cmd",
