@@ -18,7 +18,10 @@ runs, peak RSS of the child from ``wait4``), printed as one table:
 * the SAMPLE frame: bytes on the wire per sample and samples/s the 250 kbaud line
   carries, against the ADS1115's 860 samples/s.
 
-    PYTHONPATH=host python3 scripts/bench/speed_limits.py [--repeat 3] [--long] [--keep DIR]
+    python3 scripts/bench/speed_limits.py [--repeat 3] [--long] [--keep DIR] [--baseline CHECKOUT]
+
+``--baseline`` measures another checkout's ``run lifetime.yaml`` alternately with this
+one (``git worktree add /tmp/base main``), so a speed-up is read side by side.
 
 Run it on a quiet machine: figures are wall time of whole processes.
 """
@@ -72,22 +75,28 @@ fit("preisach", [tiled], "turns", "length")
 """
 
 
-def env() -> dict[str, str]:
+def env(root: Path = ROOT) -> dict[str, str]:
     e = dict(os.environ)
-    e["PYTHONPATH"] = str(ROOT / "host") + (os.pathsep + e["PYTHONPATH"] if e.get("PYTHONPATH") else "")
+    e["PYTHONPATH"] = str(root / "host")
     return e
 
 
-def rss_of(argv: list[str]) -> tuple[float, float]:
-    """(wall s, peak RSS MiB) measured in a fresh wrapper process, so ru_maxrss is this child's alone."""
+LAST_CPU: list[float] = [0.0]
+
+
+def rss_of(argv: list[str], root: Path = ROOT) -> tuple[float, float]:
+    """(wall s, peak RSS MiB) measured in a fresh wrapper process, so ru_maxrss is this
+    child's alone; its CPU seconds (user + system) go to ``LAST_CPU[0]``."""
     wrapper = ("import resource, subprocess, sys, time; t=time.perf_counter(); "
                "r=subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL); "
-               "w=time.perf_counter()-t; "
-               "print(w, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss/1024.0); sys.exit(r.returncode)")
-    proc = subprocess.run([sys.executable, "-c", wrapper, *argv], capture_output=True, env=env(), text=True)
+               "w=time.perf_counter()-t; u=resource.getrusage(resource.RUSAGE_CHILDREN); "
+               "print(w, u.ru_maxrss/1024.0, u.ru_utime+u.ru_stime); sys.exit(r.returncode)")
+    proc = subprocess.run([sys.executable, "-c", wrapper, *argv], capture_output=True, env=env(root), text=True,
+                          cwd=root)
     if proc.returncode != 0:
         sys.exit(f"speed_limits: {' '.join(argv[:6])} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    wall, rss = proc.stdout.split()[-2:]
+    wall, rss, cpu = proc.stdout.split()[-3:]
+    LAST_CPU[0] = float(cpu)
     return float(wall), float(rss)
 
 
@@ -147,6 +156,9 @@ def main() -> None:
     ap.add_argument("--long", action="store_true", help="also the 10x lifetime figures (run RSS, diagnose): minutes")
     ap.add_argument("--keep", type=Path, default=None, help="keep the run files here")
     ap.add_argument("--skip-diagnose", action="store_true")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="another checkout (e.g. `git worktree add /tmp/base main`): its `run lifetime.yaml` "
+                         "is measured too, alternating with this one, for a side-by-side speed-up")
     args = ap.parse_args()
     n = max(1, args.repeat)
     tmp = Path(args.keep or tempfile.mkdtemp(prefix="speed-limits-"))
@@ -155,19 +167,35 @@ def main() -> None:
     print("| figure | now | floor or limit |")
     print("|---|---|---|")
 
-    # run lifetime vs the plant alone
-    walls, rss = [], []
+    # run lifetime vs the plant alone (and vs a baseline checkout, alternating)
+    walls, rss, cpus, base_walls, base_cpus = [], [], [], [], []
     for i in range(n):
         out = tmp / f"lifetime-{i}.h5"
         out.unlink(missing_ok=True)
         w, r = rss_of(run_file(LIFETIME, out))
         walls.append(w)
         rss.append(r)
+        cpus.append(LAST_CPU[0])
+        if args.baseline is not None:
+            out = tmp / f"baseline-{i}.h5"
+            out.unlink(missing_ok=True)
+            bw, _ = rss_of(run_file(args.baseline / "configs" / "protocols" / "lifetime.yaml", out), args.baseline)
+            base_walls.append(bw)
+            base_cpus.append(LAST_CPU[0])
     samples, device_s, bps, col_bps = file_figures(tmp / "lifetime-0.h5")
     pw, _ = repeated([sys.executable, "-c", PLANT_LOOP, str(samples)], n)
+    pcpu = LAST_CPU[0]
     row(f"`run lifetime.yaml` ({device_s / 3600:.2f} h device time, {samples:,} samples), s",
-        f"{mm(walls)} -> {device_s / min(walls):,.0f}x / {device_s / statistics.median(walls):,.0f}x real time",
-        f"plant alone {mm(pw)} -> {device_s / min(pw):,.0f}x / {device_s / statistics.median(pw):,.0f}x")
+        f"{mm(walls)} -> {device_s / min(walls):,.0f}x / {device_s / statistics.median(walls):,.0f}x real time "
+        f"(CPU {mm(cpus)} s)",
+        f"plant alone {mm(pw)} -> {device_s / min(pw):,.0f}x / {device_s / statistics.median(pw):,.0f}x "
+        f"(CPU {pcpu:.2f} s)")
+    if base_walls:
+        row(f"  same, baseline {args.baseline}", f"{mm(base_walls)} -> {device_s / min(base_walls):,.0f}x / "
+            f"{device_s / statistics.median(base_walls):,.0f}x (CPU {mm(base_cpus)} s)",
+            f"speed-up {min(base_walls) / min(walls):.2f}x (min), "
+            f"{statistics.median(base_walls) / statistics.median(walls):.2f}x (median), "
+            f"CPU {min(base_cpus) / min(cpus):.2f}x")
 
     hw, _ = repeated([*CLI, "--help"], n)
     iw, _ = repeated([*CLI, "info", str(tmp / "lifetime-0.h5")], n)

@@ -167,9 +167,14 @@ class PreisachModel:
 
     def predict(self, u: np.ndarray) -> np.ndarray:
         """Model output for the input history ``u`` (relays start down)."""
-        states = relay_states(np.clip(np.asarray(u, dtype=float), self.u_min, self.u_max), self.u_min, self.u_max,
-                              self.levels)
-        return self.offset + self.sign * states @ np.asarray(self.weights)
+        u = np.clip(np.asarray(u, dtype=float), self.u_min, self.u_max)
+        w = np.asarray(self.weights)
+        out = np.empty(len(u)) if np.ndim(u) == 1 else None
+        if out is None or len(u) == 0:
+            _check_input(u)
+        for start, states in relay_state_blocks(u, self.u_min, self.u_max, self.levels):  # memory flat in N
+            out[start:start + len(states)] = self.offset + self.sign * states @ w
+        return out
 
     def weight_matrix(self) -> np.ndarray:
         """(M, M) lower-triangular array of weights, [i, j] = relay up at level i, down at level j."""
