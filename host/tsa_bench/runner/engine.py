@@ -122,13 +122,9 @@ class Runner:
         self.samples_lost = 0
         self.samples_discarded = 0
         self._segments_done = 0
-        # heartbeat every 1/16 of the watchdog of wall time: seen through sample timestamps
-        # that lag the device clock, the gap the device sees stays within an eighth of the
-        # watchdog. A simulated device running faster than real time sees the host only when
-        # it reads (one sim quantum, 1/8 of the watchdog, at a time): there a heartbeat every
-        # 1/4 of the watchdog of device time keeps the gap within 3/8 of it.
+        # heartbeat every 1/16 of the watchdog: seen through sample timestamps that lag the
+        # device clock, the gap the device sees stays within an eighth of the watchdog
         self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
-        self._heartbeat_dev_s = max(self._heartbeat_s, self.ident.watchdog_ms / 4000.0)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
     # -- emit ------------------------------------------------------------------
@@ -391,7 +387,7 @@ class Runner:
                             f"{wall - self._last_rx_wall:.1f} s")
         if len(self._rows) >= self.block_samples or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
             self._flush_rows()
-        if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_dev_s
+        if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_s
                 or wall - self.client.last_tx_wall >= self._heartbeat_s):
             self._command(msg.Heartbeat())
 
