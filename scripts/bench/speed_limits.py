@@ -226,11 +226,11 @@ def main() -> None:
     fits = []
     for k in (1, 4, 10):
         w, r = rss_of([sys.executable, "-c", FIT_CHILD, str(tmp / "lifetime-0.h5"), str(k)])
-        fits.append((k, w, r))
+        fits.append((k, w, r, LAST_CPU[0]))
     base = fits[0][1]
-    row("Preisach fit 1x / 4x / 10x lifetime (s, MiB)",
-        " / ".join(f"{w:.1f} s {r:.0f} MiB" for _, w, r in fits),
-        "linear: " + " / ".join(f"{base * k:.1f} s" for k, _, _ in fits))
+    row("`fit preisach` (read, tile, mask, fit) at 1x / 4x / 10x lifetime: wall s, peak MiB, CPU s",
+        " / ".join(f"{w:.1f} s {r:.0f} MiB (CPU {c:.1f} s)" for _, w, r, c in fits),
+        "linear: " + " / ".join(f"{base * k:.1f} s" for k, *_ in fits))
 
     payload, frame, sps = frame_figures()
     row("SAMPLE frame", f"{frame} B for a {payload} B payload ({(frame - payload) / frame * 100:.1f} % overhead): "
