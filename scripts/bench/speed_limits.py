@@ -233,7 +233,7 @@ def main() -> None:
         "linear: " + " / ".join(f"{base * k:.1f} s" for k, *_ in fits))
 
     payload, frame, sps = frame_figures()
-    row("SAMPLE frame", f"{frame} B for a {payload} B payload ({(frame - payload) / frame * 100:.1f} % overhead): "
+    row("SAMPLE frame", f"{frame} B for a {payload} B payload ({(frame - payload) / payload * 100:.1f} % overhead on the payload): "
         f"{sps:.0f} samples/s at {LINE_BAUD // 1000} kbaud", f"ADS1115 {ADS1115_SPS} samples/s")
 
 
