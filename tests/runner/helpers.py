@@ -21,14 +21,16 @@ def open_sim(seed: int = 1, speed: float | None = None):
     return serial.serial_for_url(url, timeout=0.05)
 
 
-def run_plan(plan, out: Path, *, port=None, seed: int = 1, writer: RunWriter | None = None):
-    """Run ``plan`` on the simulated bench (or ``port``); return (RunStop, client, path)."""
+def run_plan(plan, out: Path, *, port=None, seed: int = 1, writer: RunWriter | None = None, block_samples: int = 2048):
+    """Run ``plan`` on the simulated bench (or ``port``); return (RunStop, client, path).
+    ``block_samples=1`` hands documents to the writer at every read (not coalesced)."""
     port = port if port is not None else open_sim(seed)
     client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
     client.connect(BENCH.boot_timeout_s)
     writer = writer if writer is not None else RunWriter(out / "run.h5")
     path = writer.path
-    runner = Runner(client, plan, BENCH, [writer], AutoOperator(), backend="sim", port_name="sim://")
+    runner = Runner(client, plan, BENCH, [writer], AutoOperator(), backend="sim", port_name="sim://",
+                    block_samples=block_samples)
     stop = runner.run()
     port.close()
     return stop, client, path

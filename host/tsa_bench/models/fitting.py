@@ -81,12 +81,20 @@ def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
     if uses_whole_run(run):
         return np.ones(len(t), bool)
     mask = np.zeros(len(t), bool)
-    for s in np.unique(seg):
-        idx = np.flatnonzero((seg == s) & ~moving)
-        if len(idx) == 0:
-            continue
-        t_end, t_start = t[idx[-1]], t[idx[0]]
-        mask[idx[t[idx] >= t_start + 2.0 * (t_end - t_start) / 3.0]] = True
+    # one pass over the still samples grouped by segment (a stable sort keeps time order
+    # within each segment): O(n log n), where a loop over segments would be samples x segments
+    still = np.flatnonzero(~moving)
+    if seg.dtype.kind == "f":
+        still = still[np.isfinite(seg[still])]   # a NaN segment matches no segment
+    if len(still):
+        order = np.argsort(seg[still], kind="stable")
+        idx = still[order]
+        s = seg[idx]
+        first = np.flatnonzero(np.r_[True, s[1:] != s[:-1]])
+        last = np.r_[first[1:], len(idx)] - 1
+        t_start, t_end = t[idx[first]], t[idx[last]]
+        threshold = np.repeat(t_start + 2.0 * (t_end - t_start) / 3.0, last - first + 1)
+        mask[idx[t[idx] >= threshold]] = True
     if input_col == "heater_voltage":
         volts = _column(run, "heater_voltage")
         turns = _column(run, "turns")
