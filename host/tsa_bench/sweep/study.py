@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from yaml import MappingNode, ScalarNode
 
 from tsa_bench import __version__
 from tsa_bench.documents import DocumentError, YamlDocument, read_yaml
@@ -78,12 +79,23 @@ class Study:
     points: list[Point] = field(default_factory=list)
 
 
-def _fail(doc: YamlDocument, keys: tuple[str | int, ...], message: str) -> DocumentError:
-    node = doc.node(*keys)
+def _fail(doc: YamlDocument, keys: tuple[str | int, ...], message: str, at_key: bool = False) -> DocumentError:
+    node = _key_node(doc, keys) if at_key else None
+    node = node if node is not None else doc.node(*keys)
     if node is not None:
         return doc.error(node, message)
     return DocumentError(doc.filename, None, None, message) if not keys else \
         DocumentError(*_split(doc.where(*keys)), message)
+
+
+def _key_node(doc: YamlDocument, keys: tuple[str | int, ...]):
+    """The key node of the last key of a mapping path (where an unknown name is written)."""
+    parent = doc.node(*keys[:-1]) if keys else None
+    if isinstance(parent, MappingNode):
+        for k, _ in parent.value:
+            if isinstance(k, ScalarNode) and k.value == keys[-1]:
+                return k
+    return None
 
 
 def _split(where: str) -> tuple[str, int | None, int | None]:
@@ -262,7 +274,7 @@ def _known(doc: YamlDocument, keys: tuple[str | int, ...], tree: dict[str, Any],
     try:
         return schema.leaf_default(tree, path)
     except KeyError as exc:
-        raise _fail(doc, keys, str(exc.args[0])) from None
+        raise _fail(doc, keys, str(exc.args[0]), at_key=True) from None
 
 
 def _check(doc: YamlDocument, keys: tuple[str | int, ...], tree: dict[str, Any], path: str, value: Any,
