@@ -34,6 +34,13 @@ def _kind(values: list[Any]) -> str | None:
     return None
 
 
+def _order(v: Any) -> tuple:
+    """Sort key: numbers by value, then text, then missing values."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return (0, float(v), "")
+    return (1, 0.0, str(v)) if v is not None else (2, 0.0, "")
+
+
 def _label(name: str) -> str:
     u = unit_of(name)
     return name if u == "1" else f"{name} [{u}]"
@@ -52,7 +59,7 @@ def groups(rows: list[dict[str, Any]], x: str, series: list[str], figure: str, k
     out: dict[tuple, list] = {}
     for s, by_x in cells.items():
         line = []
-        for xv in sorted(by_x, key=lambda v: (isinstance(v, str), v)):
+        for xv in sorted(by_x, key=_order):
             vals = by_x[xv]
             if kind == "rate":
                 k, n = sum(bool(v) for v in vals), len(vals)
@@ -109,7 +116,7 @@ def write_report(study: Study, table: ResultsTable, out_dir: str | Path) -> list
             lines += [f"## {fig} vs {x}: {what}", "", f"| {' | '.join(series + [x])} | {fig} | 95 % interval | n |",
                       "|" + "---|" * (len(series) + 4)]
             fig_obj, ax = plt.subplots(figsize=(6.4, 4.0))
-            for s, line in sorted(g.items(), key=lambda kv: str(kv[0])):
+            for s, line in sorted(g.items(), key=lambda kv: [_order(v) for v in kv[0]]):
                 xs = list(range(len(line))) if isinstance(line[0][0], str) else [p[0] for p in line]
                 ys = [p[1] for p in line]
                 err = [[max(p[1] - p[2], 0) if math.isfinite(p[2]) else 0 for p in line],

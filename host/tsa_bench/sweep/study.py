@@ -66,11 +66,11 @@ class Point:
 
 @dataclass
 class Study:
-    """A validated study (module contract)."""
+    """A validated study (module contract); ``runner`` may be a function for a study built in code."""
 
     name: str
     description: str
-    runner: str
+    runner: Any
     seed: int
     base: dict[str, Any]
     axes: list[Axis]

@@ -13,6 +13,7 @@ import importlib
 import os
 import socket
 import time
+from collections.abc import Callable
 from typing import Any
 
 #: runner -> "module:function" inside this package (imported on the worker, when needed)
@@ -29,15 +30,22 @@ def runner_function(name: str):
     return getattr(importlib.import_module(f"{__name__}.{module}"), attr)
 
 
-def run_point(runner: str, key: str, config: dict[str, Any]) -> dict[str, Any]:
-    """Run one point; a row: key, status, error, work_s (s of this point's own work), worker, figures."""
+def run_point(runner: str | Callable[[dict[str, Any], Any], dict[str, Any]], key: str, config: dict[str, Any]
+              ) -> dict[str, Any]:
+    """Run one point; a row: key, status, error, work_s (s of this point's own work), worker, figures.
+
+    ``runner`` is a name of :data:`RUNNERS` or, for studies built in code (not from a
+    file), a function ``(config, None) -> figures`` that the workers can unpickle."""
     from tsa_bench.sweep.plant import resolved_plant
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {"key": key, "status": "done", "error": "",
                            "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
-        row["figures"] = runner_function(runner)(config, resolved_plant(runner, config))
+        if callable(runner):
+            row["figures"] = runner(config, None)
+        else:
+            row["figures"] = runner_function(runner)(config, resolved_plant(runner, config))
     except Exception as exc:  # a bad combination or a plant error is a result, not the end of the study
         row.update(status="failed", error=f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:500],
                    figures={})
