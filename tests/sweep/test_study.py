@@ -103,3 +103,10 @@ vary:
     assert len(s.points) == 3
     clean = [p for p in s.points if p.config["effect"]["name"] == "none"]
     assert len(clean) == 1 and clean[0].config["effect"]["magnitude"] == 0.0
+
+
+def test_report_lines_must_be_varied(tmp_path):
+    err = refused(tmp_path, GOOD + "report: {lines: [bench.preset]}\n")
+    assert f"{tmp_path / 'study.yaml'}:10:" in str(err) and "not a varied parameter" in str(err)
+    ok = load_study(write(tmp_path, GOOD + "report: {lines: [protocol.cycles]}\n", "ok.yaml"))
+    assert ok.lines == ["protocol.cycles"]

@@ -37,6 +37,11 @@ def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: 
           retry_failed: bool,
           report_only: bool, dry_run: bool, quiet: bool) -> None:
     """Run the points of STUDY.yaml (grids, lists, seeded draws) and keep one row per point in a Parquet table."""
+    import importlib.util
+
+    missing_extra = [m for m in ("distributed", "pyarrow") if importlib.util.find_spec(m) is None]
+    if missing_extra:
+        fail(f"tsa-bench sweep needs {' and '.join(missing_extra)}: pip install 'tsa-bench[sweep]'", EXIT_FAILED)
     from tsa_bench.documents import DocumentError
     from tsa_bench.sweep import load_study
     from tsa_bench.sweep.table import ResultsTable, ResultsTableError

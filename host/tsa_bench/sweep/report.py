@@ -5,8 +5,8 @@ column of the results, the points that failed left out) and every varied paramet
 more than one value (seeds are replicates, pooled: never an axis), one PNG ``<figure>__vs__<parameter>.png``: true/false figures as
 rates with 95 % Wilson intervals (power curves; a detection rate at magnitude 0 is the
 false-alarm rate), numbers as means with 95 % t intervals, one line per value of the
-other varied parameters that take at most 6 values (e.g. ``effect.name``), pooled
-over the rest (seeds, long grids, draws). ``summary.md`` holds the same numbers as tables. Returns the paths
+study's ``report.lines`` parameters (default: the varied text parameters, e.g.
+``effect.name``), pooled over the other parameters (seeds, draws, the rest). ``summary.md`` holds the same numbers as tables. Returns the paths
 written (none when the table has no rows).
 """
 
@@ -77,11 +77,10 @@ def _is_seed(param: str) -> bool:
 
 
 def _is_series(param: str, rows: list[dict[str, Any]], study: Study) -> bool:
-    """A parameter drawn as separate lines: few values, not a seed, not a random draw."""
-    axis = next(a for a in study.axes if a.path == param)
-    if _is_seed(param) or len(set(axis.values)) > 6:
-        return False
-    return len({r.get(param) for r in rows}) <= 6
+    """A parameter drawn as separate lines: the study's ``report.lines``, else one that takes text."""
+    if study.lines is not None:
+        return param in study.lines
+    return any(isinstance(r.get(param), str) for r in rows)
 
 
 def write_report(study: Study, table: ResultsTable, out_dir: str | Path) -> list[Path]:

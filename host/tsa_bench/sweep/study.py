@@ -14,6 +14,8 @@ A study file (YAML, docs/sweep.md) holds::
       bench.seed: {grid: {start: 0, stop: 3, step: 1}}
       plant.radius_mm: {random: {low: 0.45, high: 0.55, count: 3}}  # seeded draws
     keep: [drift_z, detected]        # optional: the figures of merit to keep (default all)
+    report: {lines: [plant.effects.resistance_creep.ohm_per_turn]}   # optional: drawn as separate
+                                     # lines in the figures (default: the varied text parameters)
 
 Points are the Cartesian product of the varied values, in file order. Contract of
 :func:`load_study`: every problem (an unknown parameter path, an empty list or grid, a
@@ -42,7 +44,7 @@ from tsa_bench.documents import DocumentError, YamlDocument, read_yaml
 from tsa_bench.sweep import schema
 from tsa_bench.sweep.effects import NAMES as EFFECT_NAMES
 
-TOP_KEYS = ("study", "description", "runner", "seed", "base", "vary", "keep")
+TOP_KEYS = ("study", "description", "runner", "seed", "base", "vary", "keep", "report")
 MAX_POINTS = 1_000_000
 
 
@@ -76,6 +78,7 @@ class Study:
     axes: list[Axis]
     keep: list[str] | None
     path: str = ""
+    lines: list[str] | None = None
     points: list[Point] = field(default_factory=list)
 
 
@@ -242,10 +245,22 @@ def load_study(path: str | Path) -> Study:
     keep = data.get("keep")
     if keep is not None and (not isinstance(keep, list) or not keep or not all(isinstance(k, str) for k in keep)):
         raise _fail(doc, ("keep",), "keep must be a non-empty list of figure names")
+    report = data.get("report") or {}
+    if not isinstance(report, dict) or set(report) - {"lines"}:
+        raise _fail(doc, ("report",), "report takes lines: [varied parameters drawn as separate lines]")
+    lines = report.get("lines")
+    if lines is not None:
+        if not isinstance(lines, list) or not all(isinstance(x, str) for x in lines):
+            raise _fail(doc, ("report", "lines"), "report.lines must be a list of varied parameter paths")
+        for i, x in enumerate(lines):
+            if x not in vary:
+                raise _fail(doc, ("report", "lines", i), f"report.lines: {x!r} is not a varied parameter "
+                                                         f"(varied: {', '.join(vary) or 'none'})")
     n = int(np.prod([len(a.values) for a in axes])) if axes else 1
     if n > MAX_POINTS:
         raise _fail(doc, ("vary",), f"the study has {n:,} points (at most {MAX_POINTS:,})")
-    study = Study(name.strip(), str(data.get("description") or ""), runner, seed, base, axes, keep, doc.filename)
+    study = Study(name.strip(), str(data.get("description") or ""), runner, seed, base, axes, keep, doc.filename,
+                  lines=lines)
     study.points = expand(study, tree)
     return study
 
