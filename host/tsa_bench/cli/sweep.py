@@ -54,8 +54,13 @@ def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: 
         fail("--workers sizes the local cluster; an existing --scheduler has its own workers")
     if scheduler is not None and not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://")):
         fail(f"--scheduler {scheduler!r}: give the scheduler's address, tcp://HOST:PORT")
+    from tsa_bench.shipped import find_config
+
+    found, from_shipped = find_config(study_file, "studies")
+    if from_shipped:
+        click.echo(f"sweep: using the shipped study {found}", err=True)
     try:
-        study = load_study(study_file)
+        study = load_study(found)
     except DocumentError as exc:
         fail(str(exc))
     folder = Path(out_dir) if out_dir else Path("sweeps") / study.name

@@ -115,8 +115,12 @@ def write_report(study: Study, table: ResultsTable, out_dir: str | Path) -> list
             lines += [f"## {fig} vs {x}: {what}", "", f"| {' | '.join(series + [x])} | {fig} | 95 % interval | n |",
                       "|" + "---|" * (len(series) + 4)]
             fig_obj, ax = plt.subplots(figsize=(6.4, 4.0))
-            for s, line in sorted(g.items(), key=lambda kv: [_order(v) for v in kv[0]]):
-                xs = list(range(len(line))) if isinstance(line[0][0], str) else [p[0] for p in line]
+            ordered = sorted(g.items(), key=lambda kv: [_order(v) for v in kv[0]])
+            numeric = [p[0] for _, line in ordered for p in line if not isinstance(p[0], str)]
+            span = (max(numeric) - min(numeric)) if numeric else 0.0
+            for i, (s, line) in enumerate(ordered):
+                dodge = (i - (len(ordered) - 1) / 2) * 0.008 * (span or 1.0)   # lines side by side, not hidden
+                xs = list(range(len(line))) if isinstance(line[0][0], str) else [p[0] + dodge for p in line]
                 ys = [p[1] for p in line]
                 err = [[max(p[1] - p[2], 0) if math.isfinite(p[2]) else 0 for p in line],
                        [max(p[3] - p[1], 0) if math.isfinite(p[3]) else 0 for p in line]]
