@@ -60,7 +60,7 @@ def measure(workers: int, points: int, folder: Path) -> dict:
     from tsa_bench.sweep.engine import run_study
     from tsa_bench.sweep.table import ResultsTable
 
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0")
     client = Client(cluster)
     try:
         warm = load_study(study_file(folder, 4 * workers, 900 + 10 * workers))

@@ -74,7 +74,7 @@ def connect(scheduler: str | None, workers: int | None, timeout_s: float = 10.0)
             raise SchedulerUnreachable(f"no Dask scheduler answered at {scheduler} ({type(exc).__name__}: "
                                        f"{' '.join(str(exc).split())[:200]})") from None
     cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
