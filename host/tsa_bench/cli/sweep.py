@@ -30,7 +30,7 @@ from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail
 @click.option("--retry-failed", is_flag=True, help="Run the points that failed in an earlier sweep again.")
 @click.option("--report", "report_only", is_flag=True,
               help="Run nothing: draw the figures of the results so far (figure of merit vs each varied "
-                   "parameter, rates with 95 %% intervals) into <out>/report/.")
+                   "parameter, rates with 95 % intervals) into <out>/report/.")
 @click.option("--dry-run", is_flag=True, help="Validate the study and list its points; run nothing.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress on stderr.")
 def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: int | None, timeout_s: float,

@@ -112,8 +112,8 @@ def _flatten(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     out: dict[str, Any] = {}
     for k, v in data.items():
         path = f"{prefix}{k}"
-        if isinstance(v, dict) and v:
-            out.update(_flatten(v, path + "."))
+        if isinstance(v, dict):
+            out.update(_flatten(v, path + "."))   # an empty section sets nothing
         else:
             out[path] = v
     return out
