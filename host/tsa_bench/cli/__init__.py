@@ -6,6 +6,7 @@
 - :mod:`.models`: fit, predict, manipulator
 - :mod:`.diagnose`: diagnose
 - :mod:`.reproduce`: reproduce
+- :mod:`.sweep`: sweep
 
 A command module parses options, calls the library and prints; it holds no logic of its
 own and imports the library inside the command, so that ``--help`` and ``--version``
@@ -41,6 +42,7 @@ COMMANDS: dict[str, str] = {
     "manipulator": "models:manipulator_cmd",
     "diagnose": "diagnose:diagnose",
     "reproduce": "reproduce:reproduce",
+    "sweep": "sweep:sweep",
     "ports": "rig:ports",
     "check": "rig:check",
     "jog": "rig:jog",
