@@ -73,8 +73,10 @@ def connect(scheduler: str | None, workers: int | None, timeout_s: float = 10.0)
         except (OSError, TimeoutError) as exc:
             raise SchedulerUnreachable(f"no Dask scheduler answered at {scheduler} ({type(exc).__name__}: "
                                        f"{' '.join(str(exc).split())[:200]})") from None
+    # a point's errors become rows; what the workers log themselves (a heartbeat to a scheduler
+    # that is shutting down after Ctrl-C) is noise with a traceback, so only CRITICAL passes
     cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
+                           dashboard_address=":0", silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
 
 
