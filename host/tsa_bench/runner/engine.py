@@ -299,20 +299,26 @@ class Runner:
             if not self._to_send:          # a long hold is several DWELLs
                 self._to_send = device_commands(seg, self.spt)
                 self._parts[self._next] = len(self._to_send)
-            ack = self._command(self._to_send[0])
-            if ack.status == msg.Status.QUEUE_FULL:
-                self._free = 0
+            if not self._accepted(self._command(self._to_send[0]), seg):
                 return
-            if ack.status == msg.Status.BAD_STATE:
-                self._explain_bad_state()
-            if ack.status != msg.Status.OK:
-                raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
-                                f"{msg.Status(ack.status).name.lower()}")
-            self._free = ack.queue_free
-            self._last_sent_wire = seg.index % WIRE_SEGMENTS
             self._to_send.pop(0)
             if not self._to_send:
                 self._next += 1
+
+    def _accepted(self, ack: msg.Ack, seg: Segment) -> bool:
+        """Bookkeeping of a queued command's ACK: False when the queue was full (nothing
+        was queued, send it again later); RunFailed when the device refused it."""
+        if ack.status == msg.Status.QUEUE_FULL:
+            self._free = 0
+            return False
+        if ack.status == msg.Status.BAD_STATE:
+            self._explain_bad_state()
+        if ack.status != msg.Status.OK:
+            raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
+                            f"{msg.Status(ack.status).name.lower()}")
+        self._free = ack.queue_free
+        self._last_sent_wire = seg.index % WIRE_SEGMENTS
+        return True
 
     def _feed_settle(self, seg: Segment) -> bool:
         """Queue the next DWELL of a settling hold, or end its sending once it has
@@ -332,17 +338,8 @@ class Runner:
         if self._parts[seg.index] - self._parts_done[seg.index] >= IN_FLIGHT:
             return False
         chunk_s = st.next_chunk_s()
-        ack = self._command(msg.Dwell(seg.index % WIRE_SEGMENTS, round(chunk_s * 1e6)))
-        if ack.status == msg.Status.QUEUE_FULL:
-            self._free = 0
+        if not self._accepted(self._command(msg.Dwell(seg.index % WIRE_SEGMENTS, round(chunk_s * 1e6))), seg):
             return False
-        if ack.status == msg.Status.BAD_STATE:
-            self._explain_bad_state()
-        if ack.status != msg.Status.OK:
-            raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
-                            f"{msg.Status(ack.status).name.lower()}")
-        self._free = ack.queue_free
-        self._last_sent_wire = seg.index % WIRE_SEGMENTS
         self._parts[seg.index] += 1
         st.sent_s += chunk_s
         return True
