@@ -152,6 +152,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // latched fault until the release time.
     while (r.board.rx_pending() > 0 && r.polls < MAX_POLLS) advance(r, 1000);
     advance(r, cfg::WATCHDOG_MS * 1000UL + 100000);
+    if (r.polls < MAX_POLLS && (r.dev.stopping() || r.board.step_busy())) {
+        // A slow move's pending edge and the kept steps run at their own rate (up to a
+        // second each at 1 step/s); nothing beyond them may still be queued, and they end.
+        if (r.board.steps_pending() > 1u + cfg::STOP_KEEP_STEPS)
+            fail("more than the pending edge and the kept steps still queued after the watchdog period");
+        advance(r, (1u + cfg::STOP_KEEP_STEPS) * 1000000ULL + 100000);
+    }
     if (r.polls < MAX_POLLS) {
         if (r.dev.executing() || r.dev.stopping() || r.board.heater_mV > 0 || r.board.step_busy() ||
             r.dev.queue_free() != cfg::QUEUE_SLOTS)

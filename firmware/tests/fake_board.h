@@ -84,6 +84,12 @@ public:
     uint8_t step_space() override;
     void step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
     bool step_busy() override { return step_count_ > 0; }
+    // steps still to be emitted from the ring (every run's count)
+    uint32_t steps_pending() const {
+        uint32_t n = 0;
+        for (uint8_t i = 0; i < step_count_; ++i) n += steps_[(step_head_ + i) % STEP_RING_MAX].count;
+        return n;
+    }
     int32_t step_position() override { return position; }
     void step_set_position(int32_t steps) override { position = steps; }
     void step_halt() override;
