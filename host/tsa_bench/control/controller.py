@@ -82,6 +82,7 @@ class StepController:
     _estimate: float = math.nan
     _before: tuple[float, float] | None = None   # (estimate, twist) before the last correction
     _t: float = 0.0
+    started: bool = False
 
     def __post_init__(self) -> None:
         self.slope_mm_per_turn = self.action.initial_mm_per_turn
@@ -91,6 +92,8 @@ class StepController:
         return self.action.targets[self._index][0] if not self.done else math.nan
 
     def start(self, t_s: float, turns: float) -> None:
+        """The segment's first sample: time and twist it starts from."""
+        self.started = True
         self._t = self._settle_from = t_s
         self._turns_cmd = turns
         self.outcomes.append(TargetOutcome(*self.action.targets[0], t_s))
@@ -119,13 +122,15 @@ class StepController:
                 return
         if self.state == MOVING or moving:
             return
+        self._check_target_end(t_s)
+        if self.done or self.failure:
+            return
         if not resistance_measured:
             self.state = NO_RESISTANCE
             return
         if self.state == NO_RESISTANCE:
             self.state, self._settle_from = SETTLING, t_s
-        self._check_target_end(t_s)
-        if self.done or self.failure or t_s - self._settle_from < a.settle_s or not math.isfinite(estimate_mm):
+        if t_s - self._settle_from < a.settle_s or not math.isfinite(estimate_mm):
             return
         if self._before is not None:
             self._learn_slope(estimate_mm)

@@ -501,7 +501,7 @@ class Runner:
 
     def _close_open_segments(self) -> None:
         """Record the segment(s) cut short by an abort or failure as not completed."""
-        for idx in range(self._oldest, self._next):
+        for idx in range(self._oldest, min(self._next + 1, len(self._done))):  # + the one being sent (settle, track)
             if not self._done[idx] and not np.isnan(self._t_start[idx]):
                 self._finish_segment(idx, float(self._t_start[idx]), self._t(self._now_us), False)
 

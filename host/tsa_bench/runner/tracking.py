@@ -99,6 +99,8 @@ class Tracking:
         estimates = {key: e.update(t_s, resistance_ohm, moving) for key, e in self._estimators.items()}
         c = self.controller
         if c is not None and segment == self._index:
+            if not c.started:
+                c.start(t_s, turns)
             a = c.action
             est = estimates.get((a.model_path, a.window_s), math.nan)
             c.observe(t_s, est, math.isfinite(resistance_ohm), moving, turns)
@@ -130,8 +132,7 @@ class Tracking:
             a: TrackLength = seg.action  # type: ignore[assignment]
             lo, hi = self.plan.limits.min_twist_turns, self.plan.limits.max_twist_turns
             c = self.controller = StepController(a, (lo, hi))
-            self._index = idx
-            c.start(runner._t(runner._now_us), self._last_turns)
+            self._index = idx   # it starts at the segment's first sample (the device may still be busy before)
             runner._event("tracking", f"segment {idx}: track_length with the self-sensing step controller, "
                                       f"targets {', '.join(f'{t:g}' for t, _ in a.targets)} mm")
         if c.failure:
