@@ -23,8 +23,9 @@ then updated from the estimates before and after each correction of at least hal
 turn (halfway towards the measured secant, when it has the same sign and is within a
 factor 10). Each target ends ``hold_s`` after it was reached, or ``timeout_s`` after it
 began without being reached (``on_timeout``: ``continue`` records it, ``fail`` ends the
-run). The run ends failed as soon as the estimate leaves the model's validity range
-widened by :data:`VALIDITY_MARGIN` of its width on each side.
+run). The run ends failed as soon as an estimate the controller judges (``settle_s``
+after a stop) lies outside the model's validity range widened by
+:data:`VALIDITY_MARGIN` of its width on each side.
 """
 
 from __future__ import annotations
@@ -114,12 +115,6 @@ class StepController:
         a = self.action
         if math.isfinite(estimate_mm):
             self._estimate = estimate_mm
-            lo, hi = a.valid_length_mm
-            margin = VALIDITY_MARGIN * (hi - lo)
-            if not lo - margin <= estimate_mm <= hi + margin:
-                self.failure = (f"length estimate {estimate_mm:.2f} mm left the model's validity range "
-                                f"{lo:g}..{hi:g} mm (with {margin:.2g} mm margin); tracking stopped")
-                return
         if self.state == MOVING or moving:
             return
         self._check_target_end(t_s)
@@ -131,6 +126,12 @@ class StepController:
         if self.state == NO_RESISTANCE:
             self.state, self._settle_from = SETTLING, t_s
         if t_s - self._settle_from < a.settle_s or not math.isfinite(estimate_mm):
+            return
+        lo, hi = a.valid_length_mm
+        margin = VALIDITY_MARGIN * (hi - lo)
+        if not lo - margin <= estimate_mm <= hi + margin:
+            self.failure = (f"length estimate {estimate_mm:.2f} mm left the model's validity range "
+                            f"{lo:g}..{hi:g} mm (with {margin:.2g} mm margin); tracking stopped")
             return
         if self._before is not None:
             self._learn_slope(estimate_mm)

@@ -19,7 +19,11 @@ change (a new load) within that window instead of ever more slowly. With
 ``transient_settled_s`` the decay y_t is held at its value at that time for the rest of
 the hold (the thesis saw the resistance settle after about two minutes, section 2.5.2;
 eq. 3.9 alone keeps falling, which over holds of several minutes would drift the
-estimate). While the motor
+estimate). With ``skip_s`` the samples of the first ``skip_s`` seconds of each hold are
+left out (NaN): there the decay's logarithm is steepest, the first stopped sample is up
+to a sampling period after the real stop, and a converting ADC (the CS5513's sinc
+filter) still averages the motion; one such sample would bias the mean for the whole
+window. While the motor
 turns, before the first stop and during a hold without any measured resistance (heater
 on) the estimate is NaN (:attr:`last_mm` keeps the last valid one). Nothing here reads
 the position sensor.
@@ -39,12 +43,14 @@ class OnlineLengthEstimator:
     """Per-sample length estimates (mm) from resistance (see the module contract)."""
 
     def __init__(self, model: SelfSensingModel, length_range_mm: tuple[float, float] = (1.0, 1000.0),
-                 window_s: float | None = None, transient_settled_s: float | None = None) -> None:
+                 window_s: float | None = None, transient_settled_s: float | None = None,
+                 skip_s: float = 0.0) -> None:
         f = model.forward
         self.model = model
         self.window_s = window_s   # None: mean over the whole hold (the thesis); else its last window_s
         self._recent: deque[tuple[float, float]] = deque()
         self.transient_settled_s = transient_settled_s  # None: eq. 3.9 for ever; else constant from then on
+        self.skip_s = skip_s    # samples this soon after the stop are left out of the mean
         self._range = length_range_mm
         self._p = np.asarray(f.weights_ohm_per_mm, float)
         self._dens = np.asarray(f.creep_densities_ohm_per_mm, float)
@@ -150,6 +156,8 @@ class OnlineLengthEstimator:
             return math.nan if self._hold_result is None else self._hold_result[2]
         f = self.model.forward
         since = t_s - self._t0
+        if since < self.skip_s:
+            return math.nan
         if self.transient_settled_s is not None:
             since = min(since, self.transient_settled_s)
         lg = math.log(since + f.eps_s)

@@ -41,6 +41,8 @@ if TYPE_CHECKING:
 IN_FLIGHT = 2
 #: The decay after a stop is taken as settled from this time on (s; thesis 2.5.2: about two minutes).
 TRANSIENT_SETTLED_S = 120.0
+#: The first this many seconds of each hold are left out of the estimate (s; estimator.skip_s).
+SKIP_S = 0.5
 #: Extra sample columns of a plan with track_length: name -> (dtype, units, attributes).
 COLUMNS: dict[str, tuple[str, str, dict[str, str]]] = {
     "length_estimate": ("f8", "mm", {"description": "length estimated from resistance by the self-sensing model"}),
@@ -71,6 +73,8 @@ class Tracking:
         self._index = -1
         self._move_part = 0
         self.decide_s: list[float] = []   # host time of each sample's estimate + decision (s)
+        self.command_latency_s: list[float] = []   # host time from a deciding sample to its MOVE_TO sent (s)
+        self._decided_wall = 0.0
 
     @classmethod
     def for_plan(cls, plan: Plan, steps_per_turn: int) -> Tracking | None:
@@ -87,7 +91,7 @@ class Tracking:
             except ModelFileError as exc:
                 self._load_error = str(exc)
                 return None
-            self._estimators[key] = OnlineLengthEstimator(model, window_s=a.window_s,
+            self._estimators[key] = OnlineLengthEstimator(model, window_s=a.window_s, skip_s=SKIP_S,
                                                           transient_settled_s=TRANSIENT_SETTLED_S)
         return self._estimators[key]
 
@@ -103,7 +107,10 @@ class Tracking:
                 c.start(t_s, turns)
             a = c.action
             est = estimates.get((a.model_path, a.window_s), math.nan)
+            had = c.command
             c.observe(t_s, est, math.isfinite(resistance_ohm), moving, turns)
+            if c.command is not None and had is None:
+                self._decided_wall = time.perf_counter()
             self._records.append((est, c.target_mm, c.state))
             self.decide_s.append(time.perf_counter() - t0)
         else:
@@ -167,6 +174,7 @@ class Tracking:
         if c.command is not None:
             c.command = None
             self._move_part = int(runner._parts[idx])
+            self.command_latency_s.append(time.perf_counter() - self._decided_wall)
         return True
 
 
