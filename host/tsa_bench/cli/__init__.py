@@ -3,7 +3,7 @@
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
 - :mod:`.data`: info, ls, report, watch, import, export
 - :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
-- :mod:`.models`: fit, predict, manipulator
+- :mod:`.models`: fit, predict, manipulator; :mod:`.estimate`: estimate
 - :mod:`.diagnose`: diagnose
 - :mod:`.reproduce`: reproduce
 
@@ -46,6 +46,7 @@ COMMANDS: dict[str, str] = {
     "jog": "rig:jog",
     "calibrate": "calibrate:calibrate",
     "zero": "zero:zero",
+    "estimate": "estimate:estimate",
 }
 
 
