@@ -5,7 +5,8 @@ Steps (each through the `tsa-bench` command line, simulated bench
 configs/bench/sim-scheme2-4ply.yaml with its default noise):
 
 1. run configs/protocols/track-length-training.yaml and fit a self-sensing model on it
-   (`tsa-bench fit self-sensing`), unless --model is given;
+   (`tsa-bench fit self-sensing`), unless --model is given (a self-sensing model: resistance
+   only; or a load-strain model from `tsa-bench estimate --train`: resistance and twist);
 2. run a generated protocol of --targets random length steps of 5-20 mm inside the
    model's validity range (each held 30 s once reached), then load changes of +100 g,
    -100 g, -100 g and +100 g (250 -> 350 -> 250 -> 150 -> 250 g) while tracking one length;
@@ -96,7 +97,7 @@ def main() -> int:
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT / "host"))
     from tsa_bench.control.evaluation import load_recoveries, target_figures
-    from tsa_bench.models.saved import load_model_file
+    from tsa_bench.plan.tracking_step import model_info
     from tsa_bench.store.reader import read_run
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -107,7 +108,13 @@ def main() -> int:
             cli("run", str(TRAINING), "--bench", str(BENCH), "--out", str(work / "train"), "--seed", str(args.seed))
             model = work / "model.json"
             cli("fit", "self-sensing", str(run_file(work / "train")), "--out", str(model))
-        lo, hi = load_model_file(model).options["length_range_mm"]
+        lo, hi = model_info(model)[0]
+        if "load-strain" in model.read_text(encoding="utf-8")[:200]:   # its range spans every training load:
+            from tsa_bench.control import load_strain                      # targets reachable at 250 g
+
+            ls = load_strain.load(model)
+            span = [ls.length(t, 250 * load_strain.G_N_PER_G) for t in np.linspace(*ls.twist_range_turns, 41)]
+            lo, hi = max(lo, min(span)), min(hi, max(span))
         rng = np.random.default_rng(args.seed)
         targets = random_targets(args.targets, lo + 2.0, hi - 2.0, rng)
         proto = work / "control-accuracy.yaml"

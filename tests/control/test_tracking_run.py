@@ -102,3 +102,24 @@ def test_ctrl_c_while_tracking_stops_the_motor_and_closes_the_file(tmp_path):
     seg = [r for r in run.segments if r["kind"] == b"track_length"]
     assert len(seg) == 1 and not seg[0]["completed"]
     assert not (run.samples["controller_state"] == ON_TARGET).all()
+
+
+def test_with_resistance_and_twist_a_100_g_load_change_is_recovered_within_60_s(tmp_path):
+    """configs/protocols/track-length-loads.yaml: 207 mm held through +-100 g, not told to the controller."""
+    from tsa_bench.control.evaluation import load_recoveries
+    from tsa_bench.plan import load_plan
+    from tests.control.helpers import ROOT
+    from tests.runner.helpers import run_plan
+    from tsa_bench.store.reader import read_run
+
+    plan = load_plan(ROOT / "configs/protocols/track-length-loads.yaml", SCHEME2.limits)
+    stop, _, path = run_plan(plan, tmp_path, bench=SCHEME2, seed=4)
+    assert stop.exit_status == "success", stop.reason
+    run = read_run(path)
+    recoveries = load_recoveries(run)
+    assert [(round(r.load_from_g), round(r.load_to_g)) for r in recoveries] == [
+        (250, 350), (350, 250), (250, 150), (150, 250)]
+    for r in recoveries:
+        assert r.max_deviation_mm > 3          # the new mass did move the string ...
+        assert r.recovery_s is not None and r.recovery_s <= 60, r   # ... and the loop brought it back
+    assert json.loads(run.segments[3]["params"])["model_path"].endswith("scheme2-load-strain.json")

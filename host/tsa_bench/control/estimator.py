@@ -182,3 +182,45 @@ class OnlineLengthEstimator:
     def hold_time_s(self) -> float:
         """How long the current hold has lasted at its last sample (0 while moving)."""
         return self._last_t - self._t0 if self._in_hold else 0.0
+
+
+class TwistResistanceEstimator:
+    """Per-sample length estimates (mm) from resistance AND twist with a load-strain model
+    (:mod:`tsa_bench.control.load_strain`): the resistance, freed of the decay since the stop and
+    averaged over the last ``window_s`` of the hold (after ``skip_s``), and the twist solve the
+    kinematics and the strain-load-resistance relation together for length and load, so a load
+    change does not read as a length change. NaN while moving and without resistance. Same
+    ``update`` as :class:`OnlineLengthEstimator` plus the twist (turns)."""
+
+    def __init__(self, model, window_s: float = 10.0, skip_s: float = 0.5) -> None:
+        self.model, self.window_s, self.skip_s = model, window_s, skip_s
+        self._recent: deque[tuple[float, float]] = deque()
+        self._sum = 0.0
+        self._t0 = 0.0
+        self._moving = True
+        self.last_mm = math.nan
+        self.last_load_N = math.nan
+
+    def update(self, t_s: float, resistance_ohm: float, motor_moving: bool, turns: float = 0.0) -> float:
+        from tsa_bench.control.load_strain import SETTLED_S
+
+        if motor_moving:
+            self._moving = True
+            return math.nan
+        if self._moving:
+            self._moving, self._t0, self._sum = False, t_s, 0.0
+            self._recent.clear()
+        since = t_s - self._t0
+        if since < self.skip_s or not math.isfinite(resistance_ohm):
+            return math.nan
+        m = self.model
+        lg = math.log(min(since, SETTLED_S) + 1e-5)
+        y = resistance_ohm - (m.b1_ohm * lg * lg + m.b2_ohm * lg)
+        self._recent.append((t_s, y))
+        self._sum += y
+        while self._recent[0][0] < t_s - self.window_s:
+            self._sum -= self._recent.popleft()[1]
+        load, _, length, _ = m.solve(turns, self._sum / len(self._recent))
+        if math.isfinite(length):
+            self.last_mm, self.last_load_N = length, load
+        return length

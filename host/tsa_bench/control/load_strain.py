@@ -63,6 +63,13 @@ class LoadStrainModel:
     window_s: float = 10.0
     b1_ohm: float = 0.0            # transient decay after each stop (eq. 3.9), subtracted first,
     b2_ohm: float = 0.0            # held at its value from SETTLED_S on
+    bench: str | None = None       # name of the bench the training runs were recorded on
+
+    def length_range_mm(self) -> tuple[float, float]:
+        """Lengths (mm) the model spans over its training twists and loads."""
+        grid = [self.length(t, f) for t in np.linspace(*self.twist_range_turns, 21)
+                for f in np.linspace(*self.load_range_N, 5)]
+        return float(min(grid)), float(max(grid))
 
     def length(self, turns: float, load_N: float) -> float:
         a, t2 = self.a, turns * turns
@@ -163,7 +170,14 @@ def fit(runs: list[RunData], settle_s: float = 10.0, window_s: float = 10.0) -> 
     sd_r = float(np.std(r - kb @ b, ddof=4))
     return LoadStrainModel(tuple(float(x) for x in a), tuple(float(x) for x in b), sd_l, sd_r,  # type: ignore[arg-type]
                            (float(f.min()), float(f.max())), (float(t.min()), float(t.max())), settle_s, window_s,
-                           b1, b2)
+                           b1, b2, _bench(runs))
+
+
+def _bench(runs: list[RunData]) -> str | None:
+    from tsa_bench.models.fitting import _bench_name
+
+    names = {_bench_name(r.bench_text) for r in runs}
+    return names.pop() if len(names) == 1 else None
 
 
 def save(model: LoadStrainModel, path: str | Path) -> None:
@@ -190,7 +204,7 @@ def load(path: str | Path) -> LoadStrainModel:
                                tuple(map(float, doc["load_range_N"])),  # type: ignore[arg-type]
                                tuple(map(float, doc["twist_range_turns"])),  # type: ignore[arg-type]
                                float(doc["settle_s"]), float(doc["window_s"]), float(doc["b1_ohm"]),
-                               float(doc["b2_ohm"]))
+                               float(doc["b2_ohm"]), doc.get("bench") if isinstance(doc.get("bench"), str) else None)
     except (KeyError, TypeError, ValueError) as exc:
         raise LoadStrainError(f"{p}: missing or malformed field ({exc})") from None
 

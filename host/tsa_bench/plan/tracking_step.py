@@ -6,7 +6,8 @@ Keys (each step is ``{track_length: {...}}``):
 
 ====================  =====================================================================
 model                 a self-sensing model JSON written by ``tsa-bench fit self-sensing``
-                      (path relative to the protocol file)
+                      (resistance only), or a load-strain model from ``tsa-bench estimate
+                      --train`` (resistance and twist); path relative to the protocol file
 length_mm, hold_s     one target and how long to keep it once reached, or
 targets               a list of ``{length_mm, hold_s}``
 tolerance_mm          error at which a target counts as reached (default 0.1)
@@ -48,8 +49,15 @@ MAX_S = 7 * 24 * 3600.0
 def model_info(path: Path) -> tuple[tuple[float, float], str | None]:
     """(validity range in mm, training bench name) of a self-sensing model file; raises
     ModelFileError with the reason when it cannot be used for control."""
+    from tsa_bench.control import load_strain
     from tsa_bench.models.saved import ModelFileError, load_model_file
 
+    if _format(path) == load_strain.FORMAT:   # resistance and twist (load-robust)
+        try:
+            ls = load_strain.load(path)
+        except load_strain.LoadStrainError as exc:
+            raise ModelFileError(str(exc)) from None
+        return ls.length_range_mm(), ls.bench
     saved = load_model_file(path)
     if saved.model != "self-sensing":
         raise ModelFileError(f"{path}: is a '{saved.model}' model; track_length needs a 'self-sensing' model "
@@ -64,6 +72,17 @@ def model_info(path: Path) -> tuple[tuple[float, float], str | None]:
 
     from_saved(saved)  # every parameter present
     return (float(rng[0]), float(rng[1])), bench if isinstance(bench, str) else None
+
+
+def _format(path: Path) -> str | None:
+    """The ``format`` of a JSON model file (None when it cannot be read; the loader then says why)."""
+    from tsa_bench.documents import DocumentError, read_json
+
+    try:
+        doc = read_json(path, what="model file")
+    except DocumentError:
+        return None
+    return doc.get("format") if isinstance(doc, dict) else None
 
 
 def parse_track_length(parser: StepParser, node: Node, field: str, source: str) -> list[Op] | None:

@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tsa_bench.control.controller import IDLE, STATES, StepController
-from tsa_bench.control.estimator import OnlineLengthEstimator
+from tsa_bench.control.estimator import OnlineLengthEstimator, TwistResistanceEstimator
 from tsa_bench.plan import Plan, Segment, SetSampling, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.runner.commands import WIRE_SEGMENTS
@@ -83,16 +84,22 @@ class Tracking:
     def _estimator(self, a: TrackLength) -> OnlineLengthEstimator | None:
         key = (a.model_path, a.window_s)
         if key not in self._estimators:
+            from tsa_bench.control import load_strain
             from tsa_bench.models.fitting import from_saved
             from tsa_bench.models.saved import ModelFileError, load_model_file
+            from tsa_bench.plan.tracking_step import _format
 
             try:
-                model = from_saved(load_model_file(a.model_path))
-            except ModelFileError as exc:
+                if _format(Path(a.model_path)) == load_strain.FORMAT:
+                    self._estimators[key] = TwistResistanceEstimator(load_strain.load(a.model_path), a.window_s,
+                                                                     SKIP_S)
+                else:
+                    self._estimators[key] = OnlineLengthEstimator(
+                        from_saved(load_model_file(a.model_path)), window_s=a.window_s, skip_s=SKIP_S,
+                        transient_settled_s=TRANSIENT_SETTLED_S)
+            except (ModelFileError, load_strain.LoadStrainError) as exc:
                 self._load_error = str(exc)
                 return None
-            self._estimators[key] = OnlineLengthEstimator(model, window_s=a.window_s, skip_s=SKIP_S,
-                                                          transient_settled_s=TRANSIENT_SETTLED_S)
         return self._estimators[key]
 
     # -- samples ---------------------------------------------------------------
@@ -100,7 +107,8 @@ class Tracking:
         """Every stored sample, in order (exactly one record each, for :meth:`annotate`)."""
         t0 = time.perf_counter()
         self._last_turns = turns
-        estimates = {key: e.update(t_s, resistance_ohm, moving) for key, e in self._estimators.items()}
+        estimates = {key: (e.update(t_s, resistance_ohm, moving, turns) if isinstance(e, TwistResistanceEstimator)
+                           else e.update(t_s, resistance_ohm, moving)) for key, e in self._estimators.items()}
         c = self.controller
         if c is not None and segment == self._index:
             if not c.started:
