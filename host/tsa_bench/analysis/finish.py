@@ -102,6 +102,12 @@ class Finisher:
                                own.p_above["pooled"], ch["form_conf"], own.improvement["pooled"],
                                own.ci95["pooled"], ch["gain"],
                                {s.key: current.values.get(s.key) for s in FORM_SPECS[form]})
+            lo, hi = own.ci95["pooled"]
+            if len(chosen) > 1 and not lo > 0:   # passed its gate, but the final model does as well without it
+                partial.append({**cause.to_json(), "explained_share": share,
+                                "why": f"in the final model its own held-out improvement is not above zero "
+                                       f"(95 % {lo:.3g} to {hi:.3g} noise variances per sample)"})
+                continue
             if share < vd.SHARE_MIN:
                 partial.append({**cause.to_json(), "explained_share": share,
                                 "why": f"removes only {100 * share:.0f} % of the {main} residual's structure"})

@@ -12,7 +12,9 @@ Contract (the decision rule; docs/diagnose.md explains it):
   output it acts on, the final model removed at least :data:`SHARE_MIN` of the judged
   model's structured variance; a named cause whose output is still structured keeps a
   caveat saying what the residual still follows, and its confidence is multiplied by
-  that share. A cause that removes less is demoted to ``partial`` (reported, not named);
+  that share. A cause that removes less is demoted to ``partial`` (reported, not named),
+  as is one whose own part in the final model (that model re-calibrated without it) has a
+  95 % interval of its held-out improvement reaching zero or below;
 * ``unexplained`` when nothing is named but some output's residual is structured
   (structure.py), saying what it follows;
 * ``explained`` otherwise: every judged output's residual is consistent with the noise
