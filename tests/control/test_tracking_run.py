@@ -123,3 +123,27 @@ def test_with_resistance_and_twist_a_100_g_load_change_is_recovered_within_60_s(
         assert r.max_deviation_mm > 3          # the new mass did move the string ...
         assert r.recovery_s is not None and r.recovery_s <= 60, r   # ... and the loop brought it back
     assert json.loads(run.segments[3]["params"])["model_path"].endswith("scheme2-load-strain.json")
+
+
+def test_a_run_aborted_after_tracking_resumes_at_the_twist_it_reached(tmp_path):
+    from tsa_bench.runner.resume import resume_point
+    from tsa_bench.plan import load_plan_text
+
+    text = protocol("length_mm: 207, hold_s: 5", after="  - hold: {duration_s: 30}\n  - move_to: {turns: 0}\n")
+    interrupts = Interrupts()
+
+    class AbortInLastHold(StopWhenMoving):
+        def on_segment(self, s) -> None:
+            if s.kind == "track_length" and not self.interrupts.count:
+                self.interrupts.count, self.interrupts.last_signal = 1, signal.SIGINT
+
+        def on_samples(self, block) -> None: ...
+
+    stop, run = run_text(text, tmp_path, consumers=[AbortInLastHold(interrupts)], interrupts=interrupts)
+    assert stop.exit_status == "aborted"
+    plan = load_plan_text(text, SCHEME2.limits, "track-test.yaml")
+    point = resume_point(run, plan, tmp_path / "run.h5")
+    assert plan.segments[point.first_segment].kind in ("hold", "move")
+    track = [r for r in run.segments if r["kind"] == b"track_length"][0]
+    last = run.samples["turns"][run.samples["segment"] == track["index"]][-1]
+    assert point.turns == last and point.turns != 30.0   # not the last move's 30 turns
