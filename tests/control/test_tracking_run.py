@@ -147,3 +147,14 @@ def test_a_run_aborted_after_tracking_resumes_at_the_twist_it_reached(tmp_path):
     track = [r for r in run.segments if r["kind"] == b"track_length"][0]
     last = run.samples["turns"][run.samples["segment"] == track["index"]][-1]
     assert point.turns == last and point.turns != 30.0   # not the last move's 30 turns
+
+
+def test_report_draws_the_tracking_figure_with_its_figures(tmp_path):
+    from tsa_bench.report.run_report import write_run_report
+
+    stop, run = run_text(STEPS, tmp_path)
+    report = write_run_report(tmp_path / "run.h5", tmp_path / "report")
+    (fig,) = [f for f in report.figures if f.name == "tracking"]
+    assert fig.path.stat().st_size > 10_000
+    assert "2 of 2 targets reached" in fig.caption and "steady-state error of the true length max" in fig.caption
+    assert "tracking" in (tmp_path / "report" / "index.html").read_text()

@@ -196,8 +196,8 @@ class TwistResistanceEstimator:
         self.model, self.window_s, self.skip_s = model, window_s, skip_s
         self._recent: deque[tuple[float, float]] = deque()
         self._sum = 0.0
-        self._t0 = 0.0
-        self._moving = True
+        self._t0 = -math.inf     # at rest since before the run: the decay has settled
+        self._moving = False
         self.last_mm = math.nan
         self.last_load_N = math.nan
 
