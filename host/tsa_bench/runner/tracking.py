@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tsa_bench.control.controller import IDLE, STATES, StepController
-from tsa_bench.control.estimator import OnlineLengthEstimator, TwistResistanceEstimator
 from tsa_bench.plan import Plan, Segment, SetSampling, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.runner.commands import WIRE_SEGMENTS
@@ -58,7 +57,7 @@ class Tracking:
 
     def __init__(self, plan: Plan, steps_per_turn: int) -> None:
         self.plan, self.spt = plan, steps_per_turn
-        self._estimators: dict[tuple[str, float], OnlineLengthEstimator] = {}
+        self._estimators: dict[tuple[str, float], Any] = {}   # OnlineLengthEstimator / TwistResistanceEstimator
         self._load_error: str | None = None
         self._periods: dict[int, float] = {}
         period = plan.sampling_period_s
@@ -81,10 +80,11 @@ class Tracking:
     def for_plan(cls, plan: Plan, steps_per_turn: int) -> Tracking | None:
         return cls(plan, steps_per_turn) if any(isinstance(s.action, TrackLength) for s in plan.segments) else None
 
-    def _estimator(self, a: TrackLength) -> OnlineLengthEstimator | None:
+    def _estimator(self, a: TrackLength) -> Any:
         key = (a.model_path, a.window_s)
-        if key not in self._estimators:
+        if key not in self._estimators:  # (scipy and the models load only for a plan that tracks)
             from tsa_bench.control import load_strain
+            from tsa_bench.control.estimator import OnlineLengthEstimator, TwistResistanceEstimator
             from tsa_bench.models.fitting import from_saved
             from tsa_bench.models.saved import ModelFileError, load_model_file
             from tsa_bench.plan.tracking_step import _format
@@ -107,7 +107,7 @@ class Tracking:
         """Every stored sample, in order (exactly one record each, for :meth:`annotate`)."""
         t0 = time.perf_counter()
         self._last_turns = turns
-        estimates = {key: (e.update(t_s, resistance_ohm, moving, turns) if isinstance(e, TwistResistanceEstimator)
+        estimates = {key: (e.update(t_s, resistance_ohm, moving, turns) if hasattr(e, "last_load_N")
                            else e.update(t_s, resistance_ohm, moving)) for key, e in self._estimators.items()}
         c = self.controller
         if c is not None and segment == self._index:
