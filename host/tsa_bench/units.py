@@ -19,7 +19,7 @@ Contract:
 * :data:`CHANNELS` is the shared table of named sample channels: the contract columns
   of docs/run-format.md and the extra channels other rigs bring (temperature, force,
   pressure, stress, strain, current), each with its dimension and the unit it is stored
-  in. The CSV importer (:mod:`tsa_bench.store.csv_import`) and the thesis records
+  in. The importers (:mod:`tsa_bench.importers`) and the thesis records
   (:mod:`tsa_bench.reproduce.records`) both read it.
 """
 

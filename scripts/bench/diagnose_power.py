@@ -1,208 +1,178 @@
 #!/usr/bin/env python3
-"""Power of `tsa-bench diagnose` on two generators: detection, wrong names, false alarms, time.
+"""Power of `tsa-bench diagnose`, run as sweep studies on Dask: detection, wrong names, false alarms, time.
 
-Generators (both in tests/, imported by path):
+A thin wrapper over the sweep engine (docs/sweep.md):
 
-* ``library``: tests/analysis/hidden.py, the project's own plant (tsa_bench.sim) on the
-  thesis-like diagnostic protocol, one or two library effects hidden (parameters drawn);
+* ``library``: the study configs/studies/diagnose-power.yaml (the project's own plant
+  on the diagnostic protocol, each candidate effect hidden at a magnitude; magnitude 0
+  is a clean run), with ``--seeds``, ``--magnitudes``, ``--repeats`` and ``--effects``
+  replacing its lists;
 * ``foreign``: tests/analysis/foreign/, an independent numpy plant on random rotation
-  walks, rigs unlike the library default, effects in other forms and effects the library
-  does not have (tests/analysis/foreign/cases.py says what each case must give).
+  walks (other rigs, other forms of the effects, effects the library does not have;
+  tests/analysis/foreign/cases.py says what each case must give), a study built here
+  with one point per case x seed.
 
-For each case x seed a run is written and diagnosed against the default judged model
-(configs/bench/sim-baseline.yaml). Reported, each with a 95 % Wilson interval:
+Both run on a LocalCluster sized to the machine (``--workers``) or an existing
+scheduler (``--scheduler tcp://HOST:PORT``); results are kept in ``--out`` (resumable:
+re-running skips finished points). Printed, each with a 95 % Wilson interval:
+detection per effect and magnitude, wrong names, out-of-library answered
+``unexplained``, false alarms, and the diagnose time per run.
 
-* detection: in-library cases whose expected effects are all named, dominant first (with
-  two hidden effects, the one that changes the noise-free outputs more, in noise units);
-* wrong name: runs where an effect not hidden was named (any case);
-* out-of-library: cases answered ``unexplained`` with nothing named;
-* false alarm: clean runs not answered ``explained``;
-
-and the diagnose time per run (median, max).
-
-    python scripts/bench/diagnose_power.py [--seeds 3] [--clean 20] [--generators library,foreign]
-                                           [--cases a,b] [--minutes 20] [--jobs 2] [-v]
+    python scripts/bench/diagnose_power.py [--generators library,foreign] [--seeds 2] [--magnitudes 0,0.3,1]
+        [--repeats 1,2] [--effects a,b] [--clean 10] [--minutes 20] [--workers N | --scheduler tcp://H:P]
+        [--out sweeps/diagnose-power-script]
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import math
+import os
 import sys
 import tempfile
-import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT))          # the generators live in tests/ (a package)
-LIBRARY_CASES = {
-    **{e: ((e,), "named", (e,)) for e in ("resistance_transient_decay", "resistance_creep", "length_creep",
-                                           "load_dependence", "twist_hysteresis", "thermal_dynamics",
-                                           "missed_steps", "resistance_hysteresis")},
-    "thermal_dynamics+resistance_temperature": (("thermal_dynamics", "resistance_temperature"), "named",
-                                                ("thermal_dynamics", "resistance_temperature")),
-    "length_creep+resistance_transient_decay": (("length_creep", "resistance_transient_decay"), "named",
-                                                ("length_creep", "resistance_transient_decay")),
-}
+sys.path.insert(0, str(ROOT / "host"))
+sys.path.insert(0, str(ROOT))          # the foreign generator lives in tests/ (a package)
+os.environ["PYTHONPATH"] = os.pathsep.join([str(ROOT / "host"), str(ROOT), os.environ.get("PYTHONPATH", "")])
 
+import yaml  # noqa: E402
 
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return max(0.0, c - h), min(1.0, c + h)
-
-
-def _library_run(case: str, seed: int, path: Path) -> dict:
-    from tests.analysis import hidden
-    if case == "clean":
-        info = hidden.generate(path, (), seed=seed, short=True)
-        return {"verdict": "explained", "causes": (), "n": info["n"]}
-    effects, verdict, causes = LIBRARY_CASES[case]
-    info = hidden.generate(path, effects, seed=seed)
-    if len(causes) > 1:
-        causes = tuple(sorted(causes, key=lambda c: -_library_power(effects, c, seed)))
-    return {"verdict": verdict, "causes": causes, "n": info["n"]}
-
-
-def _library_power(effects: tuple[str, ...], effect: str, seed: int) -> float:
-    """Mean squared change of the noise-free outputs, in noise variances, that ``effect`` makes
-    among ``effects`` (which of two hidden effects dominates)."""
-    import numpy as np
-
-    from tests.analysis import hidden
-    from tsa_bench.analysis.modelspec import switch
-    from tsa_bench.analysis.replay import deterministic
-    from tsa_bench.sim.history import simulate
-    h = hidden.history(hidden.protocol_steps())
-    cfg, _ = hidden.truth_config(effects, seed, h)
-    args = (h["t"], h["turns"], h["heater_voltage"], h["load_g"], h["motor_moving"].astype(bool))
-    full = simulate(deterministic(cfg), *args)
-    rest = simulate(deterministic(switch(cfg, effect, False)), *args)
-    scale = {"length_mm": np.hypot(0.05, 0.14 / np.sqrt(12)), "resistance_ohm": 0.001}
-    return float(sum(np.mean(((full[k] - rest[k]) / s) ** 2) for k, s in scale.items()))
-
-
-def _foreign_run(case: str, seed: int, path: Path, minutes: float) -> dict:
-    from tests.analysis.foreign.cases import make
-    c = make(case, path, seed=seed, minutes=minutes)
-    return {"verdict": c.verdict, "causes": tuple(c.causes), "n": c.n}
-
-
-def one(job: tuple[str, str, int, float]) -> dict:
-    """Generate one run and diagnose it."""
-    generator, case, seed, minutes = job
-    from tsa_bench.analysis import diagnose, load_model
-    from tsa_bench.store import read_run
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "run.h5"
-        truth = _library_run(case, seed, path) if generator == "library" else _foreign_run(case, seed, path, minutes)
-        t0, c0 = time.perf_counter(), time.process_time()
-        result = diagnose([read_run(path)], load_model(None), None, seed=seed)
-        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return {"generator": generator, "case": case, "seed": seed, "expected": truth["verdict"],
-            "expected_causes": truth["causes"], "verdict": result.verdict, "causes": tuple(result.causes),
-            "seconds": dt, "cpu_seconds": cpu, "n": truth["n"], "summary": result.summary}
-
-
-def jobs_for(generators: list[str], seeds: int, clean: int, cases: list[str] | None, minutes: float) -> list:
-    jobs = []
-    if "library" in generators:
-        for case in cases or list(LIBRARY_CASES):
-            if case in LIBRARY_CASES:
-                jobs += [("library", case, 100 + s, minutes) for s in range(seeds)]
-        jobs += [("library", "clean", 500 + s, minutes) for s in range(clean)]
-    if "foreign" in generators:
-        from tests.analysis.foreign.cases import CASES
-        for case in cases or list(CASES):
-            if case in CASES and not case.startswith("clean"):
-                jobs += [("foreign", case, 100 + s, minutes) for s in range(seeds)]
-        rigs = [c for c in CASES if c.startswith("clean")]
-        jobs += [("foreign", rigs[s % len(rigs)], 500 + s, minutes) for s in range(clean)]
-    return jobs
+from tsa_bench.sweep.stats import wilson  # noqa: E402
 
 
 def rate_line(label: str, k: int, n: int) -> str:
     lo, hi = wilson(k, n)
-    return f"  {label:<44} {k:>4}/{n:<4} = {100 * k / max(n, 1):5.1f} %   95 % CI [{100 * lo:.1f}, {100 * hi:.1f}] %"
+    return f"  {label:<52} {k:>4}/{n:<4} = {100 * k / max(n, 1):5.1f} %   95 % CI [{100 * lo:.1f}, {100 * hi:.1f}] %"
 
 
-def report(results: list[dict], generator: str) -> None:
-    rs = [r for r in results if r["generator"] == generator]
-    if not rs:
-        return
-    print(f"\n{generator} generator: {len(rs)} runs")
-    named = [r for r in rs if r["expected"] == "named"]
-    outside = [r for r in rs if r["expected"] == "unexplained"]
-    clean = [r for r in rs if r["expected"] == "explained"]
-    print(f"  {'case':<44} {'runs':>4}  right  verdicts")
-    for case in sorted({r["case"] for r in rs}):
-        cs = [r for r in rs if r["case"] == case]
-        right = sum(_right(r) for r in cs)
-        verdicts = ", ".join(sorted({r["verdict"] + (":" + "+".join(r["causes"]) if r["causes"] else "")
-                                     for r in cs}))
-        print(f"  {case:<44} {len(cs):>4}  {right:>5}  {verdicts}")
-    print(rate_line("detection (expected effects named, dominant first)", sum(_right(r) for r in named),
-                    len(named)))
+def foreign_point(config: dict, _plant: None) -> dict:
+    """One foreign-generator case: write the run, diagnose it against the default model."""
+    import time
+
+    from tests.analysis.foreign.cases import make
+    from tsa_bench.analysis import diagnose, load_model
+    from tsa_bench.store import read_run
+
+    with tempfile.TemporaryDirectory() as tmp:
+        c = make(config["case"], Path(tmp) / "run.h5", seed=config["seed"], minutes=config["minutes"])
+        t0 = time.perf_counter()
+        r = diagnose([read_run(Path(tmp) / "run.h5")], load_model(None), None, seed=config["seed"])
+    return {"expected": c.verdict, "expected_causes": "+".join(c.causes), "verdict": r.verdict,
+            "causes": "+".join(r.causes), "diagnose_s": time.perf_counter() - t0}
+
+
+def library_study(args, folder: Path):
+    from tsa_bench.sweep import load_study
+
+    spec = yaml.safe_load((ROOT / "configs" / "studies" / "diagnose-power.yaml").read_text(encoding="utf-8"))
+    vary = spec["vary"]
+    if args.effects:
+        vary["effect.name"] = args.effects.split(",")
+    if args.magnitudes:
+        vary["effect.magnitude"] = [float(m) for m in args.magnitudes.split(",")]
+    if args.repeats:
+        vary["protocol.repeats"] = [int(r) for r in args.repeats.split(",")]
+    vary["bench.seed"] = list(range(1, args.seeds + 1))
+    path = folder / "diagnose-power.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    return load_study(path)
+
+
+def foreign_study(args):
+    from tests.analysis.foreign.cases import CASES
+    from tsa_bench.sweep.study import Axis, Point, Study, point_key
+
+    cases = [c for c in CASES if not c.startswith("clean") and (not args.cases or c in args.cases.split(","))]
+    rigs = [c for c in CASES if c.startswith("clean")]
+    configs = [{"case": c, "seed": 100 + s, "minutes": args.minutes} for c in cases for s in range(args.seeds)]
+    configs += [{"case": rigs[s % len(rigs)], "seed": 500 + s, "minutes": args.minutes} for s in range(args.clean)]
+    points = [Point(i, point_key("foreign-generator", c, None), c, dict(c)) for i, c in enumerate(configs)]
+    return Study("diagnose-power-foreign", "foreign generator", foreign_point, 0, {},
+                 [Axis("case", tuple(c["case"] for c in configs))], None, points=points)
+
+
+def report_library(rows: list[dict]) -> None:
+    print(f"\nlibrary generator: {len(rows)} runs")
+    for r in rows:
+        r["name"] = r["effect.name"] if "effect.name" in r else "none"
+    effects = sorted({r["name"] for r in rows} - {"none"})
+    mags = sorted({r.get("effect.magnitude") for r in rows if r["name"] != "none"})
+    for e in effects:
+        for m in mags:
+            cell = [r for r in rows if r["name"] == e and r.get("effect.magnitude") == m]
+            if cell:
+                print(rate_line(f"detection {e} x {m:g}", sum(bool(r["detected"]) for r in cell), len(cell)))
+    named = [r for r in rows if r["name"] != "none"]
     print(rate_line("wrong name (an effect not hidden was named)",
-                    sum(any(c not in r["expected_causes"] for c in r["causes"]) for r in rs), len(rs)))
-    if outside:
-        print(rate_line("out-of-library answered unexplained, nothing named", sum(_right(r) for r in outside),
-                        len(outside)))
-    if clean:
-        print(rate_line("false alarm (clean run not explained)", sum(r["verdict"] != "explained" for r in clean),
-                        len(clean)))
-    secs = sorted(r["seconds"] for r in rs)
-    cpu = sorted(r.get("cpu_seconds", r["seconds"]) for r in rs)
-    print(f"  diagnose time per run: median {secs[len(secs) // 2]:.1f} s, max {secs[-1]:.1f} s wall; "
-          f"median {cpu[len(cpu) // 2]:.1f} s, max {cpu[-1]:.1f} s CPU "
-          f"(samples per run {min(r['n'] for r in rs)}-{max(r['n'] for r in rs)})")
+                    sum(bool(r["causes"]) and r["causes"].split("+")[0] != r["name"] for r in named), len(named)))
+    clean = [r for r in rows if r["name"] == "none"]
+    print(rate_line("false alarm (clean run not explained)", sum(bool(r["alarm"]) for r in clean), len(clean)))
+    _times(rows)
 
 
-def _right(r: dict) -> bool:
-    if r["expected"] == "named":
-        return r["verdict"] == "named" and tuple(r["causes"]) == tuple(r["expected_causes"])
-    return r["verdict"] == r["expected"] and not r["causes"]
+def report_foreign(rows: list[dict]) -> None:
+    print(f"\nforeign generator: {len(rows)} runs")
+    named = [r for r in rows if r["expected"] == "named"]
+    print(rate_line("detection (expected effects named, dominant first)",
+                    sum(r["verdict"] == "named" and r["causes"] == r["expected_causes"] for r in named), len(named)))
+    print(rate_line("wrong name (an effect not hidden was named)",
+                    sum(any(c and c not in r["expected_causes"].split("+") for c in r["causes"].split("+"))
+                        for r in rows), len(rows)))
+    outside = [r for r in rows if r["expected"] == "unexplained"]
+    print(rate_line("out-of-library answered unexplained, nothing named",
+                    sum(r["verdict"] == "unexplained" and not r["causes"] for r in outside), len(outside)))
+    clean = [r for r in rows if r["expected"] == "explained"]
+    print(rate_line("false alarm (clean run not explained)", sum(r["verdict"] != "explained" for r in clean),
+                    len(clean)))
+    _times(rows)
+
+
+def _times(rows: list[dict]) -> None:
+    secs = sorted(r["diagnose_s"] for r in rows if r.get("diagnose_s") is not None)
+    if secs:
+        print(f"  diagnose time per run: median {secs[len(secs) // 2]:.1f} s, max {secs[-1]:.1f} s")
 
 
 def main() -> None:
+    from tsa_bench.sweep.engine import connect, run_study
+    from tsa_bench.sweep.table import ResultsTable
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=3, help="seeds per case with an effect")
-    ap.add_argument("--clean", type=int, default=20, help="clean runs per generator")
     ap.add_argument("--generators", default="library,foreign")
-    ap.add_argument("--cases", default=None, help="comma-separated subset of cases")
+    ap.add_argument("--seeds", type=int, default=2, help="seeds per case with an effect")
+    ap.add_argument("--clean", type=int, default=10, help="clean runs of the foreign generator")
+    ap.add_argument("--magnitudes", default=None, help="library: effect magnitudes (default: the study's)")
+    ap.add_argument("--repeats", default=None, help="library: protocol blocks of ~10 min (default: the study's)")
+    ap.add_argument("--effects", default=None, help="library: effects (default: the study's)")
+    ap.add_argument("--cases", default=None, help="foreign: comma-separated subset of cases")
     ap.add_argument("--minutes", type=float, default=20.0, help="length of the foreign generator's walks")
-    ap.add_argument("--jobs", type=int, default=2, help="worker processes")
-    ap.add_argument("--verbose", "-v", action="store_true", help="print every run")
+    ap.add_argument("--workers", type=int, default=None, help="local cluster size (default: the machine's cores)")
+    ap.add_argument("--scheduler", default=None, help="tcp://HOST:PORT of a running Dask scheduler")
+    ap.add_argument("--out", default="sweeps/diagnose-power-script", help="results folder (resumable)")
     args = ap.parse_args()
     gens = [g.strip() for g in args.generators.split(",") if g.strip()]
-    jobs = jobs_for(gens, args.seeds, args.clean, args.cases.split(",") if args.cases else None, args.minutes)
-    t0 = time.perf_counter()
-    results = []
-
-    def show(r: dict) -> None:
-        results.append(r)
-        if args.verbose:
-            mark = "ok " if _right(r) else "BAD"
-            print(f"{mark} {r['generator']:<8} {r['case']:<40} seed {r['seed']:<4} {r['seconds']:5.1f} s  "
-                  f"{r['summary'][:160]}", flush=True)
-
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs) as pool:
-            for r in pool.map(one, jobs):
-                show(r)
-    else:
-        for j in jobs:
-            show(one(j))
-    wall = time.perf_counter() - t0
-    print(f"diagnose power: {len(results)} runs, {wall:.0f} s wall with {args.jobs} job(s)")
-    for g in gens:
-        report(results, g)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    client, cluster = connect(args.scheduler, args.workers)
+    try:
+        for g in gens:
+            study = library_study(args, out) if g == "library" else foreign_study(args)
+            table = ResultsTable(out / g)
+            s = run_study(study, table, client=client,
+                          progress=lambda d, f, n: print(f"{g}: {d + f}/{n} points, {f} failed", file=sys.stderr))
+            print(f"{g}: {s.done} done, {s.failed} failed, {s.skipped} from earlier runs, {s.wall_s:.0f} s wall",
+                  file=sys.stderr)
+            keys = {p.key for p in study.points}
+            rows = [r for r in table.read().to_pylist() if r["key"] in keys and r["status"] == "done"]
+            for r in table.read().to_pylist():
+                if r["key"] in keys and r["status"] != "done":
+                    print(f"  failed point {r['point']}: {r['error']}")
+            (report_library if g == "library" else report_foreign)(rows)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 if __name__ == "__main__":

@@ -133,13 +133,12 @@ def test_a_run_aborted_after_tracking_resumes_at_the_twist_it_reached(tmp_path):
     interrupts = Interrupts()
 
     class AbortInLastHold(StopWhenMoving):
-        def on_segment(self, s) -> None:
-            if s.kind == "track_length" and not self.interrupts.count:
+        def on_samples(self, block) -> None:   # samples of the hold after the track_length (segment 4)
+            if (block.columns["segment"] == 4).any() and not self.interrupts.count:
                 self.interrupts.count, self.interrupts.last_signal = 1, signal.SIGINT
 
-        def on_samples(self, block) -> None: ...
-
-    stop, run = run_text(text, tmp_path, consumers=[AbortInLastHold(interrupts)], interrupts=interrupts)
+    # at 40 x real time sample blocks reach the consumers during the 30 s hold
+    stop, run = run_text(text, tmp_path, consumers=[AbortInLastHold(interrupts)], interrupts=interrupts, speed=40)
     assert stop.exit_status == "aborted"
     plan = load_plan_text(text, SCHEME2.limits, "track-test.yaml")
     point = resume_point(run, plan, tmp_path / "run.h5")

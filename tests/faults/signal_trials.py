@@ -85,7 +85,8 @@ def flush_trial(tmp_path: Path, rng: random.Random, plan_text: str) -> TrialResu
     writer = SignallingWriter(path, at_flush=rng.randrange(1, 60), column=rng.randrange(13), signals=signals,
                               at_close=at_close)
     port = FaultyPort(open_sim(rng.randrange(1000)), LinkFaults())
-    stop, _, _ = run_plan(plan_from_text(plan_text), tmp_path, port=port, writer=writer)
+    # documents at every read (not coalesced), so that there is a flush per segment end to hit
+    stop, _, _ = run_plan(plan_from_text(plan_text), tmp_path, port=port, writer=writer, block_samples=1)
     ok, detail = _readable(path)
     device = port._port.device
     for _ in range(100):  # a STOP at speed decelerates at the device's limit (<= 50 ms): let it end

@@ -77,7 +77,8 @@ BAD = [
     ("time_s,len\n0,1\n1,2\n", {"t": "time_s", "length": "len_mm"}, {},
      ["rig.csv:1", "column 'len_mm' (mapped to length) is not in the header", "time_s, len"]),
     ("time_s,len\n0,1\n1,2\n", {"t": "time_s", "lenght": "len"}, {}, ["unknown target 'lenght'"]),
-    ("time_s,len\n0,1\n1,2\n", {"length": "len"}, {}, ["'t' (time) must be mapped"]),
+    # time_s would be picked up as t (a partial --map keeps the automatic pick-up): a column not named as time
+    ("stamp,len\n0,1\n1,2\n", {"length": "len"}, {"length": "mm"}, ["'t' (time) must be mapped"]),
     ("len\n1\n", None, {}, ["rig.csv:1", "no column named 't'"]),
     ("time_s,len\n0,1\n1,abc\n2,3\n", {"t": "time_s", "length": "len"}, {"length": "mm"},
      ["rig.csv:3", "column 'len' (length)", "cannot parse 'abc'"]),

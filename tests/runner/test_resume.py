@@ -90,8 +90,9 @@ def test_resume_after_an_abort_at_a_random_segment(tmp_path, uninterrupted, seed
     port = open_sim(seed)
     client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
     client.connect(BENCH.boot_timeout_s)
+    # block_samples=1: documents handed over at every read, so the abort lands right after segment k
     stop = Runner(client, plan, BENCH, [RunWriter(first), AbortAt(interrupts, k)], AutoOperator(), backend="sim",
-                  port_name="sim://", interrupts=interrupts).run()
+                  port_name="sim://", interrupts=interrupts, block_samples=1).run()
     port.close()
     assert stop.exit_status == "aborted"
 
@@ -137,7 +138,7 @@ def _killed_child(path: str, k: int) -> None:
     client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
     client.connect(BENCH.boot_timeout_s)
     Runner(client, plan, BENCH, [RunWriter(path, flush_interval_s=60), side, Kill()], AutoOperator(),
-           backend="sim", port_name="sim://").run()
+           backend="sim", port_name="sim://", block_samples=1).run()  # blocks per read: killed mid-run
     os._exit(0)
 
 

@@ -1,11 +1,12 @@
 """Command line: the `tsa-bench` group, one module per family of commands.
 
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
-- :mod:`.data`: info, ls, report, watch, import, export
+- :mod:`.data`: info, ls, report, watch, export; :mod:`.importing`: import
 - :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
 - :mod:`.models`: fit, predict, manipulator; :mod:`.estimate`: estimate
 - :mod:`.diagnose`: diagnose
 - :mod:`.reproduce`: reproduce
+- :mod:`.sweep`: sweep
 
 A command module parses options, calls the library and prints; it holds no logic of its
 own and imports the library inside the command, so that ``--help`` and ``--version``
@@ -34,13 +35,14 @@ COMMANDS: dict[str, str] = {
     "ls": "data:ls_cmd",
     "report": "data:report",
     "watch": "data:watch",
-    "import": "data:import_cmd",
+    "import": "importing:import_cmd",
     "export": "data:export",
     "fit": "models:fit_cmd",
     "predict": "models:predict_cmd",
     "manipulator": "models:manipulator_cmd",
     "diagnose": "diagnose:diagnose",
     "reproduce": "reproduce:reproduce",
+    "sweep": "sweep:sweep",
     "ports": "rig:ports",
     "check": "rig:check",
     "jog": "rig:jog",

@@ -1,4 +1,4 @@
-"""Data commands: `tsa-bench info | ls | report | watch | import | export`.
+"""Data commands: `tsa-bench info | ls | report | watch | export` (`import`: :mod:`.importing`).
 
 Exit codes as in :mod:`tsa_bench.cli`: 0 success; 1 a watched run ended without success
 or was killed; 2 bad input (run file, CSV, options), with a message naming the file and,
@@ -110,63 +110,6 @@ def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: flo
         fail(f"--wait must be 0..86400 s, got {wait_s}")
     console = make_console(terminal=False if plain else None)
     sys.exit(do_watch(run_file, plain=plain, once=once, interval_s=interval_s, wait_s=wait_s, console=console))
-
-
-def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
-    """'a=b,c=d' (option may repeat) -> {a: b, c: d}; exits 2 on a malformed pair."""
-    out: dict[str, str] = {}
-    for value in values:
-        for part in value.split(","):
-            if not part.strip():
-                continue
-            key, sep, val = part.partition("=")
-            if not sep or not key.strip() or not val.strip():
-                click.echo(f"error: {option}: '{part}' is not KEY=VALUE", err=True)
-                sys.exit(EXIT_BAD_INPUT)
-            out[key.strip()] = val.strip()
-    return out
-
-
-@click.command("import")
-@click.argument("csv_file", type=click.Path(dir_okay=False))
-@click.option("--map", "maps", multiple=True,
-              help="Target = CSV column, comma-separated, e.g. t=time_s,length=len_mm,temperature=T_C,"
-                   "force=F_N. Targets: contract columns, the channels temperature, force, pressure, stress, "
-                   "strain, current, voltage, angle, or any other name (an extra column). Default: CSV columns "
-                   "named like these, and columns whose header gives a unit.")
-@click.option("--units", "unit_opts", multiple=True,
-              help="Column = unit, e.g. t=ms,load=g,temperature=K (default: the unit in the header, "
-                   "'name [unit]', else the stored unit). Extra columns other than the channels need one.")
-@click.option("--sample-period", "sample_period_s", type=float, default=None,
-              help="The file has no time column: t = row index x this period (s), rows in file order.")
-@click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
-@click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
-def import_cmd(csv_file: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], sample_period_s: float | None,
-               metas: tuple[str, ...], out_file: str) -> None:
-    """Turn CSV_FILE from another rig into a run file (backend "import"); see docs/analysis.md.
-
-    Columns beyond the contract (temperature, force, pressure, ...) are kept as extra
-    /samples columns with their units (docs/run-format.md)."""
-    from tsa_bench.store.csv_import import CsvImportError, import_csv
-    from tsa_bench.store.inspect import inspect_run
-
-    meta: dict[str, str] = {}
-    for m in metas:  # one pair per --meta: the value may contain commas
-        key, sep, value = m.partition("=")
-        if not sep or not key.strip():
-            click.echo(f"error: --meta: '{m}' is not KEY=VALUE", err=True)
-            sys.exit(EXIT_BAD_INPUT)
-        meta[key.strip()] = value
-    try:
-        path = import_csv(csv_file, out_file, _pairs(maps, "--map") if maps else None,
-                          _pairs(unit_opts, "--units"), meta, sample_period_s)
-    except CsvImportError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
-    except OSError as exc:
-        click.echo(f"error: cannot write {out_file}: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
-    click.echo(f"wrote {path} ({inspect_run(path).n_samples} samples)")
 
 
 @click.command()

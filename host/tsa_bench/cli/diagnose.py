@@ -67,14 +67,23 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
             click.echo(f"diagnose: {msg}", err=True)
 
     runs = []
-    for path in run_files:
-        say(f"reading {path}")
+    for path in run_files:  # read first: a run without segments is said on the first line
         try:
             runs.append(read_run(path))
         except RunFileError as exc:
             fail(str(exc))
         except Exception as exc:  # any reader surprise is still bad input, named by file
             fail(f"{path}: cannot read the run file ({type(exc).__name__}: {exc})")
+    import numpy as np
+
+    for r in runs:
+        if len(r) and not (r.samples["segment"] >= 0).any():
+            click.echo(f"diagnose: note: {r.path} has no segments: held-out blocks and resampling units are cut "
+                       "by time alone, not at segment ends (tsa-bench import --segments infer finds them)", err=True)
+        if "force" in r.samples and not np.isfinite(np.asarray(r.samples["load"], float)).any():
+            click.echo(f"diagnose: note: {r.path} has a measured force (the force column) and no declared load: "
+                       "the model's initial load is used as the load, not the measured force", err=True)
+    say(f"read {', '.join(run_files)}")
     if any(len(r) == 0 for r in runs):
         empty = next(r.path for r in runs if len(r) == 0)
         fail(f"{empty}: the run has no samples; nothing to diagnose")

@@ -288,8 +288,9 @@ def _execute_run(session: dict, interrupts) -> int:
         sys.stderr.flush()
         os._exit(EXIT_FAILED)
     if path.exists():
-        try:
-            click.echo(format_run_info(inspect_run(path)))
+        try:  # the writer's running statistics: the file is not read back
+            info = writer.summary() if writer is not None and writer.stats.n else inspect_run(path)
+            click.echo(format_run_info(info))
         except RunFileError as exc:
             click.echo(f"error: {exc}", err=True)
         if resume is not None:

@@ -14,7 +14,8 @@ Contract:
   (:func:`uses_whole_run`). Optionally only samples at one declared load
   (:func:`load_mask`); the Preisach relays are driven by the whole input history of each run.
 * :func:`fit_notes` says what a user should know about a fit: runs used whole for lack
-  of segments, several loads mixed in one model, more parameters than a tenth of the
+  of segments, several loads mixed in one model, a measured force (the ``force`` channel)
+  that is not a declared load (:func:`measured_force_note`), more parameters than a tenth of the
   samples they were fitted on.
 * strain-resistance maps length -> resistance, self-sensing resistance (+ the
   motor-moving flag) -> length; both are fitted and scored on the hold samples
@@ -80,12 +81,20 @@ def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
     if uses_whole_run(run):
         return np.ones(len(t), bool)
     mask = np.zeros(len(t), bool)
-    for s in np.unique(seg):
-        idx = np.flatnonzero((seg == s) & ~moving)
-        if len(idx) == 0:
-            continue
-        t_end, t_start = t[idx[-1]], t[idx[0]]
-        mask[idx[t[idx] >= t_start + 2.0 * (t_end - t_start) / 3.0]] = True
+    # one pass over the still samples grouped by segment (a stable sort keeps time order
+    # within each segment): O(n log n), where a loop over segments would be samples x segments
+    still = np.flatnonzero(~moving)
+    if seg.dtype.kind == "f":
+        still = still[np.isfinite(seg[still])]   # a NaN segment matches no segment
+    if len(still):
+        order = np.argsort(seg[still], kind="stable")
+        idx = still[order]
+        s = seg[idx]
+        first = np.flatnonzero(np.r_[True, s[1:] != s[:-1]])
+        last = np.r_[first[1:], len(idx)] - 1
+        t_start, t_end = t[idx[first]], t[idx[last]]
+        threshold = np.repeat(t_start + 2.0 * (t_end - t_start) / 3.0, last - first + 1)
+        mask[idx[t[idx] >= threshold]] = True
     if input_col == "heater_voltage":
         volts = _column(run, "heater_voltage")
         turns = _column(run, "turns")
@@ -107,8 +116,23 @@ def load_mask(run: RunData, load_g: float | None) -> np.ndarray:
         raise FitError(f"{run.path}: no 'load' column to select {load_g:g} g by")
     mask = np.abs(np.asarray(run.samples["load"], float) / G_N_PER_G - load_g) < 0.5
     if not mask.any():
+        if not loads_g(run) and "force" in run.samples:
+            raise FitError(f"{run.path}: no declared load to select {load_g:g} g by; its measured force (the "
+                           "'force' column) is not a declared load: model it with --input/--output force")
         raise FitError(f"{run.path}: no samples at a load of {load_g:g} g (loads: {', '.join(f'{g:g} g' for g in loads_g(run))})")
     return mask
+
+
+def measured_force_note(run: RunData) -> str | None:
+    """A sentence when ``run`` has a measured force (``force``) and no declared load: which one was used."""
+    if "force" not in run.samples or loads_g(run):
+        return None
+    f = np.asarray(run.samples["force"], float)
+    f = f[np.isfinite(f)]
+    if not len(f):
+        return None
+    return (f"{run.path} has no declared load; its measured force (force, {f.min():.4g}..{f.max():.4g} N) is a "
+            "channel, not a load: no loads were counted or selected")
 
 
 def loads_g(run: RunData, mask: np.ndarray | None = None) -> list[float]:
@@ -331,7 +355,10 @@ def fit_notes(saved: SavedModel, runs: list[RunData]) -> list[str]:
         if uses_whole_run(r):
             notes.append(f"{r.path} has no segments (no holds to take quasi-static samples from): "
                          f"the whole run, {len(r)} samples, was used")
-        elif load_g is None:
+        force_note = measured_force_note(r)
+        if force_note and io_in != "force" and saved.output["column"] != "force":
+            notes.append(force_note)
+        elif load_g is None and not uses_whole_run(r):
             loads = loads_g(r, quasi_static_mask(r, io_in))
             if len(loads) > 1:
                 notes.append(f"{r.path} holds samples at {len(loads)} loads ({', '.join(f'{g:g}' for g in loads)} g); "

@@ -56,7 +56,8 @@ from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
 
 COUNTER_MOD = 1 << 32         # SAMPLE.counter is a u32
 BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
-BLOCK_WALL_S = 0.5            # or this much wall time has passed, or a segment ends
+BLOCK_WALL_S = 0.5            # or this much wall time has passed (segment records and events
+                              # wait with them, emitted in order after the block)
 
 
 def plan_load_known(load_g: float) -> bool:
@@ -72,7 +73,8 @@ class Runner:
 
     def __init__(self, client: BenchClient, plan: Plan, bench: BenchConfig, consumers: Sequence[RunConsumer],
                  operator: Operator, *, backend: str, port_name: str, interrupts: Interrupts | None = None,
-                 resume: ResumePoint | None = None, metadata: dict | None = None) -> None:
+                 resume: ResumePoint | None = None, metadata: dict | None = None,
+                 block_samples: int = BLOCK_SAMPLES) -> None:
         if client.identity is None:
             raise ValueError("connect the client before running")
         self.client, self.plan, self.bench = client, plan, bench
@@ -113,6 +115,8 @@ class Runner:
         self._prompt_segment: int | None = None
         self._last_status: msg.QueueStatus | None = None
         self._rows: list[tuple] = []
+        self.block_samples = max(1, int(block_samples))  # 1: documents handed over at every read
+        self._later: list[tuple[str, object]] = []   # documents waiting for the rows before them
         self._last_block_wall = time.monotonic()
         self._last_counter: int | None = None
         self.samples = 0
@@ -130,11 +134,19 @@ class Runner:
         for c in self.consumers:
             getattr(c, name)(doc)
 
+    def _emit_later(self, name: str, doc) -> None:
+        """A segment record or event: emitted after the samples received before it, with
+        the next sample block (at once when no samples are pending)."""
+        if self._rows:
+            self._later.append((name, doc))
+        else:
+            self._emit(name, doc)
+
     def _t(self, t_us: int) -> float:
         return (t_us - (self._t0_us or 0)) / 1e6
 
     def _event(self, kind: str, detail: str, t_us: int | None = None) -> None:
-        self._emit("on_event", EventRecord(self._t(self._now_us if t_us is None else t_us), kind, detail))
+        self._emit_later("on_event", EventRecord(self._t(self._now_us if t_us is None else t_us), kind, detail))
 
     # -- protocol helpers --------------------------------------------------
     def _unwrap(self, wire: int) -> int:
@@ -380,7 +392,7 @@ class Runner:
         elif wall - self._last_rx_wall > self._silence_s:
             raise RunFailed(f"lost connection: the device on {self.port_name} has been silent for "
                             f"{wall - self._last_rx_wall:.1f} s")
-        if len(self._rows) >= BLOCK_SAMPLES or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
+        if len(self._rows) >= self.block_samples or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
             self._flush_rows()
         if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_s
                 or wall - self.client.last_tx_wall >= self._heartbeat_s):
@@ -488,7 +500,6 @@ class Runner:
                 self._finish_segment(j, t if np.isnan(start) else float(start), t, True)
 
     def _finish_segment(self, idx: int, t_start: float, t_end: float, completed: bool) -> None:
-        self._flush_rows()  # consumers get the samples up to a segment end before the segment
         seg = self.plan.segments[idx]
         self._done[idx] = True
         self._segments_done += completed
@@ -496,8 +507,9 @@ class Runner:
             self._oldest += 1
         params = seg.params()
         params.update(self._settle_outcome.pop(idx, {}))
-        self._emit("on_segment", SegmentRecord(idx, seg.kind, t_start, t_end, params, seg.source,
-                                               seg.cycle, completed))
+        # consumers get the samples up to a segment end before the segment
+        self._emit_later("on_segment", SegmentRecord(idx, seg.kind, t_start, t_end, params, seg.source,
+                                                     seg.cycle, completed))
 
     def _close_open_segments(self) -> None:
         """Record the segment(s) cut short by an abort or failure as not completed."""
@@ -506,11 +518,18 @@ class Runner:
                 self._finish_segment(idx, float(self._t_start[idx]), self._t(self._now_us), False)
 
     def _flush_rows(self) -> None:
-        if not self._rows:
-            return
-        rows, self._rows = self._rows, []
-        self._last_block_wall = time.monotonic()
-        block = sample_block(rows, self.bench, self.spt, self._t0_us or 0)
-        if self._tracking is not None:
-            self._tracking.annotate(block)
-        self._emit("on_samples", block)
+        """Emit the pending samples as one block, then the documents that came after them."""
+        if self._rows:
+            rows, self._rows = self._rows, []
+            self._last_block_wall = time.monotonic()
+            block = sample_block(rows, self.bench, self.spt, self._t0_us or 0)
+            if self._tracking is not None:
+                self._tracking.annotate(block)
+            self._emit("on_samples", block)
+        docs, self._later = self._later, []
+        for i, (name, doc) in enumerate(docs):
+            try:
+                self._emit(name, doc)
+            except BaseException:
+                self._later[:0] = docs[i + 1:]  # still emitted by the closing flush
+                raise

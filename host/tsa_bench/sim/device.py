@@ -7,7 +7,11 @@ Contract: pure and deterministic for a given seed - no I/O, no wall clock. Bytes
 the host go in with :meth:`SimDevice.receive` and are handled at the current virtual
 time; :meth:`SimDevice.advance` moves virtual time forward event by event (segment
 ends, samples, the watchdog); device frames (with the device's own running seq)
-accumulate for :meth:`SimDevice.take_output`. Protocol behaviour, as the firmware
+accumulate for :meth:`SimDevice.take_output`. A device made with ``frames=True`` keeps
+them as decoded :class:`~tsa_bench.protocol.Frame` objects instead (for an in-process
+host: no framing, CRC or decoding on either side; :meth:`take_frames` gives them with
+their size on the wire, :meth:`receive_frame` takes a host message), with exactly the
+same sequence of frames, sizes and timing; ``take_output`` still gives the bytes. Protocol behaviour, as the firmware
 implements it:
 
 * HELLO answers IDENTITY and resets the duplicate filter; a protocol version or
@@ -63,7 +67,7 @@ from typing import NamedTuple
 
 from tsa_bench.bench.config import BenchConfig
 from tsa_bench.protocol import catalogue as msg
-from tsa_bench.protocol.codec import encode
+from tsa_bench.protocol.codec import Frame, encode
 from tsa_bench.protocol.framing import FrameDecoder, RawFrame, encode_raw
 from tsa_bench.sim.executor import NO_SEGMENT, QueuedCommand, SegmentExecutor
 from tsa_bench.sim.identity import (
@@ -79,13 +83,22 @@ _SAMPLE_SPEC = msg.MESSAGES[0x83]
 _SAMPLE_PACK = _SAMPLE_SPEC.struct.pack
 _NOT_MEASURED = int(msg.AdcFlags.RESISTANCE_NOT_MEASURED)
 _QUEUED_TYPES = (msg.MoveTo, msg.MoveBy, msg.Dwell, msg.SetHeater, msg.SetSampling)
+_SAMPLE_FRAME_BYTES = _SAMPLE_SPEC.struct.size + 8
+
+
+def frame_bytes(payload_bytes: int) -> int:
+    """Bytes one frame takes on the wire: header 4 + payload + CRC 2, COBS 1 (bodies
+    under 254 bytes: every catalogue message), delimiter 1."""
+    body = payload_bytes + 6
+    return body + 1 + body // 254 + 1
 _STATE = msg.DeviceState
 
 
 class SimDevice:
     """A simulated tsa-bench device (see module docstring)."""
 
-    def __init__(self, bench: BenchConfig, plant: Plant | None = None, seed: int | None = None) -> None:
+    def __init__(self, bench: BenchConfig, plant: Plant | None = None, seed: int | None = None, *,
+                 frames: bool = False) -> None:
         self.bench = bench
         self.limits: DeviceLimits = device_limits(bench)
         self.identity = identity_message(self.limits)
@@ -104,6 +117,8 @@ class SimDevice:
         self._turns_per_step = 1.0 / self.limits.steps_per_turn
         self._framer = FrameDecoder()
         self._out = bytearray()
+        self._frames: list[tuple[Frame | bytes, int]] | None = [] if frames else None
+        self._produced = 0               # output bytes produced so far (both modes)
         self._urgent = False             # output holds a non-SAMPLE frame
         self._urgent_sent = 0            # non-SAMPLE frames sent so far
         self._seq = 0
@@ -154,7 +169,7 @@ class SimDevice:
 
     @property
     def pending_output_bytes(self) -> int:
-        return len(self._out)
+        return len(self._out) if self._frames is None else sum(n for _, n in self._frames)
 
     def set_load_g(self, load_g: float) -> None:
         """Change the hanging load, as an operator would (same as SIM_SET_LOAD)."""
@@ -163,7 +178,7 @@ class SimDevice:
     def boot(self) -> None:
         """Announce the start: queue BOOT (reason POWER_ON: a fresh device, position unknown),
         after a lone delimiter, as the firmware does (it ends a frame a reset cut short)."""
-        self._out += b"\x00"
+        self._put_bytes(b"\x00")
         self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(msg.BootReason.POWER_ON)))
 
     def receive(self, data: bytes) -> None:
@@ -172,12 +187,36 @@ class SimDevice:
             self._last_host_s = self.now_s
             self._handle(raw)
 
+    def receive_frame(self, seq: int, message: NamedTuple) -> None:
+        """Handle one host message as if its (valid) frame had arrived now."""
+        spec = msg.SPEC_BY_CLASS[type(message)]
+        self._last_host_s = self.now_s
+        self._handle(RawFrame(msg.PROTOCOL_VERSION, seq, spec.id, b""), message)
+
     def take_output(self) -> bytes:
         """Everything sent since the last call."""
+        if self._frames is not None:
+            frames, self._frames = self._frames, []
+            self._out += b"".join(f if isinstance(f, bytes) else encode(f.message, f.seq) for f, _ in frames)
         out = bytes(self._out)
         self._out.clear()
         self._urgent = False
         return out
+
+    def take_frames(self) -> list[tuple[Frame | bytes, int]]:
+        """(frame device mode) Everything sent since the last call: frames, or raw bytes
+        (the boot delimiter), each with its size on the wire."""
+        assert self._frames is not None, "take_frames needs a device made with frames=True"
+        frames, self._frames = self._frames, []
+        self._urgent = False
+        return frames
+
+    def _put_bytes(self, data: bytes) -> None:
+        if self._frames is None:
+            self._out += data
+        else:
+            self._frames.append((data, len(data)))
+        self._produced += len(data)
 
     def advance(self, max_dt_s: float, max_output_bytes: int) -> float:
         """Run virtual time forward event by event; return the time advanced (s).
@@ -189,11 +228,10 @@ class SimDevice:
         start = self.now_s
         end = start + max(0.0, max_dt_s)
         ex = self.executor
-        out = self._out
-        limit = len(out) + max_output_bytes
+        limit = self._produced + max_output_bytes
         urgent_before = self._urgent_sent
         release_s = self.limits.fault_release_s
-        while self._urgent_sent == urgent_before and len(out) < limit:
+        while self._urgent_sent == urgent_before and self._produced < limit:
             t_seg = ex.end_s
             t_smp = self._next_sample_s
             armed = self.watchdog_armed and not self.fault
@@ -225,7 +263,14 @@ class SimDevice:
         if self._held is not None:
             self._held.append(message)
             return
-        self._out += encode(message, self._seq)
+        if self._frames is None:
+            data = encode(message, self._seq)
+            self._out += data
+            self._produced += len(data)
+        else:
+            n = frame_bytes(msg.SPEC_BY_CLASS[type(message)].struct.size)
+            self._frames.append((Frame(self._seq, message), n))
+            self._produced += n
         self._seq = (self._seq + 1) & 0xFFFF
         self._urgent = True
         self._urgent_sent += 1
@@ -248,9 +293,15 @@ class SimDevice:
         t_us = self._anchor_us + self._k * self._period_us
         if heater_mV == 0 and not timing.measured(t_us * 1e-6, self._period_us * 1e-6):
             resistance_raw, flags = 0, flags | _NOT_MEASURED
-        payload = _SAMPLE_PACK(self._counter, t_us, steps, position_raw, resistance_raw, flags, heater_mV,
-                               1 if moving else 0, ex.segment)
-        self._out += encode_raw(0x83, self._seq, payload)
+        fields = (self._counter, t_us, steps, position_raw, resistance_raw, flags, heater_mV, 1 if moving else 0,
+                  ex.segment)
+        if self._frames is None:
+            data = encode_raw(0x83, self._seq, _SAMPLE_PACK(*fields))
+            self._out += data
+            self._produced += len(data)
+        else:
+            self._frames.append((Frame(self._seq, msg.Sample(*fields)), _SAMPLE_FRAME_BYTES))
+            self._produced += _SAMPLE_FRAME_BYTES
         self._seq = (self._seq + 1) & 0xFFFF
         self._counter = (self._counter + 1) & 0xFFFFFFFF
         self._k += 1
@@ -265,15 +316,16 @@ class SimDevice:
         self._next_sample_s = (self._anchor_us + period_us) * 1e-6 if period_us else math.inf
 
     # -- input ------------------------------------------------------------
-    def _handle(self, raw: RawFrame) -> None:
+    def _handle(self, raw: RawFrame, message: NamedTuple | None = None) -> None:
         spec = msg.MESSAGES.get(raw.msg_id)
         if spec is None or spec.direction != "host":
             self._answer(raw, _S.UNKNOWN_MESSAGE)
             return
-        if len(raw.payload) != spec.struct.size:
-            self._answer(raw, _S.BAD_LENGTH)
-            return
-        message = spec.cls._make(spec.struct.unpack(raw.payload))
+        if message is None:
+            if len(raw.payload) != spec.struct.size:
+                self._answer(raw, _S.BAD_LENGTH)
+                return
+            message = spec.cls._make(spec.struct.unpack(raw.payload))
         if type(message) is msg.Hello:
             self._hello(raw, message)
             return

@@ -3,14 +3,17 @@
 Contract: :class:`RunWriter` is a :class:`~tsa_bench.runner.documents.RunConsumer`.
 ``on_start`` creates the file with ``exit_status`` "running"; samples, segments and
 events are buffered in memory and written, then the file is flushed, at every
-segment end and at least every ``flush_interval_s`` of wall time (default 1 s), so a
+segment end, at least every ``flush_interval_s`` of wall time (default 1 s) and
+whenever a chunk's worth of rows (``chunk_rows``) is waiting, so a
 run killed at any moment leaves a file that opens with plain h5py and holds every
 sample up to the last flush. Segment ends closer together than
-``min_flush_interval_s`` of wall time (default 0.05 s) share one flush: that only
-happens on the simulated bench running hundreds of times faster than real time,
+``min_flush_interval_s`` of wall time (default 0.5 s) share one flush: that only
+happens on the simulated bench running thousands of times faster than real time,
 where a flush per segment would cost more than the whole simulation, and it delays
-no data by more than that interval. ``on_stop`` writes the rest, the exit status and reason,
-and closes the file. The low-level h5py API is used for appends because the
+no data by more than that interval (the live sidecar holds the latest samples meanwhile). ``on_stop`` writes the rest, the exit status and reason,
+and closes the file. Memory stays flat in run length: each dataset's chunk cache is
+bounded (:data:`CACHE_BYTES`) and :meth:`RunWriter.summary` gives the closing
+statistics from running sums kept while writing, not by reading the file back. The low-level h5py API is used for appends because the
 high-level slicing costs ~1 ms per append of 13 columns, which a 12,000-segment
 lifetime run cannot afford at every segment end.
 
@@ -54,6 +57,9 @@ FORMAT_VERSION = "1.1"
 CHUNK = 8192
 #: gzip level of the sample columns (0: uncompressed); shuffle goes with it.
 COMPRESSION_LEVEL = 4
+#: Chunk cache of each dataset while writing (bytes): two chunks of 8-byte values, enough
+#: for appends (the chunk being filled stays cached), and bounded whatever the run's length.
+CACHE_BYTES = 2 * CHUNK * 8
 STR = h5py.string_dtype("utf-8")
 SEGMENT_DTYPE = np.dtype([("index", "i4"), ("kind", STR), ("t_start", "f8"), ("t_end", "f8"),
                           ("completed", "u1"), ("cycle", "i4"), ("source", STR), ("params", STR)])
@@ -87,7 +93,7 @@ class _Appender:
 class RunWriter:
     """Writes one run file; see the module contract."""
 
-    def __init__(self, path: str | Path, flush_interval_s: float = 1.0, min_flush_interval_s: float = 0.05,
+    def __init__(self, path: str | Path, flush_interval_s: float = 1.0, min_flush_interval_s: float = 0.5,
                  *, chunk_rows: int = CHUNK, compression_level: int = COMPRESSION_LEVEL) -> None:
         if not 1 <= chunk_rows <= 1 << 20 or not 0 <= compression_level <= 9:
             raise ValueError(f"chunk_rows must be 1..{1 << 20} and compression_level 0..9, "
@@ -101,6 +107,7 @@ class RunWriter:
         self.flushes = 0
         self._f: h5py.File | None = None
         self._pending: list[SampleBlock] = []
+        self._pending_rows = 0
         self._segments: list[tuple] = []
         self._events: list[tuple] = []
         self._last_flush = time.monotonic()
@@ -110,6 +117,9 @@ class RunWriter:
         self.full: str | None = None    # why nothing more is written ("disk full: ...")
         self.broken: str | None = None  # the HDF5 library failed a write: the file cannot be closed
         self.samples_not_stored = 0
+        from tsa_bench.store.inspect import RunningStats  # (inspect reads files through the reader, which imports us)
+        #: statistics of what is stored, kept as it is written (:meth:`summary`)
+        self.stats = RunningStats({name: units for name, (_, units) in SAMPLE_COLUMNS.items()})
 
     def on_start(self, start: RunStart) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -117,7 +127,7 @@ class RunWriter:
         # Default (earliest) format on purpose: with libver="latest" the superblock marks the
         # file open-for-write, and a killed run would then not open without h5clear.
         try:
-            f = self._f = h5py.File(self.path, "w")
+            f = self._f = h5py.File(self.path, "w", rdcc_nbytes=max(CACHE_BYTES, 2 * self.chunk_rows * 8))
         except OSError as exc:
             if exc.errno in NO_ROOM_ERRNOS:
                 raise StorageFull(f"disk full: cannot create {self.path}: {exc.strerror}") from None
@@ -170,6 +180,7 @@ class RunWriter:
 
     def on_samples(self, block: SampleBlock) -> None:
         self._pending.append(block)
+        self._pending_rows += len(block)
         self._maybe_flush()
 
     def on_segment(self, s: SegmentRecord) -> None:
@@ -204,7 +215,7 @@ class RunWriter:
                     return
                 # no room for the samples: keep the segments and events (the STOP among them)
                 self.samples_not_stored = sum(len(b) for b in self._pending)
-                self._pending = []
+                self._pending, self._pending_rows = [], 0
                 reason += f"; {self.samples_not_stored} samples received after that were not stored"
                 try:
                     self._write_pending()
@@ -226,7 +237,8 @@ class RunWriter:
 
     def _maybe_flush(self) -> None:
         since = time.monotonic() - self._last_flush
-        if since >= self.flush_interval_s or (self._segment_flush_due and since >= self.min_flush_interval_s):
+        if since >= self.flush_interval_s or (self._segment_flush_due and since >= self.min_flush_interval_s) \
+                or self._pending_rows >= self.chunk_rows:
             self.flush()
 
     def flush(self) -> None:
@@ -270,3 +282,18 @@ class RunWriter:
             self.broken = f"the HDF5 library failed to write {self.path} ({exc}); the file cannot be closed"
             raise StorageFull(f"disk full or write error: {self.broken}") from None
         self._pending, self._segments, self._events = [], [], []
+        self._pending_rows = 0
+        if columns:
+            self.stats.add_samples(columns)
+        if segments is not None:
+            self.stats.add_segments(segments)
+        if events is not None:
+            self.stats.add_events(events)
+
+    def summary(self) -> "RunInfo":  # noqa: F821 (tsa_bench.store.inspect.RunInfo)
+        """What :func:`~tsa_bench.store.inspect.inspect_run` says about the closed file,
+        from the statistics kept while writing (only the attributes are read back)."""
+        from tsa_bench.store.reader import _File
+        with h5py.File(self.path, "r") as f:
+            attrs = _File(self.path, f).attrs()
+        return self.stats.info(str(self.path), attrs)

@@ -14,7 +14,10 @@ file stays the only record, and :class:`LiveSidecar`, a run consumer placed AFTE
 * then fixed-size little-endian records (:data:`RECORD`: every sample column of the run
   file, raw counts included, so a killed run's last samples can be recovered from it
   by ``tsa-bench run --resume``), append-only, flushed to the
-  operating system at least every ``flush_interval_s`` (0.1 s) and at segment ends; a
+  operating system at least every ``flush_interval_s`` (0.1 s), at segment ends when
+  samples were written since the last flush (the runner hands samples over in blocks, at
+  least every 0.5 s, each followed by the segment records that came after it) and at the
+  end; a
   reader takes only whole records below the size it sees;
 * ``kind`` 0 is a sample; the last record has ``kind`` 1 success, 2 aborted or 3 failed,
   with ``t`` the run's end time and ``counter`` the number of samples. It is written
@@ -74,6 +77,7 @@ class LiveSidecar:
         self.remove_at_end = remove_at_end
         self._f: BinaryIO | None = None
         self._last_flush = 0.0
+        self._dirty = False      # written since the last flush
         self.records = 0
 
     def _fail(self, exc: BaseException) -> None:
@@ -107,12 +111,15 @@ class LiveSidecar:
         if self._f is None:
             return
         try:
-            self._f.write(rec.tobytes())
-            self.records += len(rec)
+            if len(rec):
+                self._f.write(rec.tobytes())
+                self.records += len(rec)
+                self._dirty = True
             now = time.monotonic()
-            if force or now - self._last_flush >= self.flush_interval_s:
+            if self._dirty and (force or now - self._last_flush >= self.flush_interval_s):
                 self._f.flush()
                 self._last_flush = now
+                self._dirty = False
         except (OSError, ValueError) as exc:
             self._fail(exc)
 
@@ -124,7 +131,7 @@ class LiveSidecar:
         self._write(rec)
 
     def on_segment(self, segment: SegmentRecord) -> None:
-        self._write(np.zeros(0, dtype=RECORD), force=True)
+        self._write(np.zeros(0, dtype=RECORD), force=True)  # a flush only when samples are waiting
 
     def on_event(self, event: EventRecord) -> None:
         pass

@@ -21,6 +21,14 @@ speed: ``read`` sleeps (within its timeout) until it may advance. Speed is a cap
 clock: virtual time still only advances when the host reads, so a host busy for a
 moment (a file flush, a garbage collection) never finds the device seconds ahead with
 its watchdog tripped. At full speed no call sleeps: dwells cost no wall time.
+
+In-process fast path: the device keeps its frames decoded (``SimDevice(frames=True)``),
+and :meth:`Serial.read_frames` / :meth:`Serial.write_frame` hand them over without
+framing, CRC or decoding (:class:`~tsa_bench.device.BenchClient` uses them when the port
+has them). Every size and limit above still counts the bytes the frames would take on
+the wire, and ``read_frames(size)`` returns exactly the frames whose last byte
+``read(size)`` would have returned, so both paths see the same frames at the same
+device times; ``read`` and ``write`` keep working on bytes.
 """
 
 from __future__ import annotations
@@ -28,11 +36,13 @@ from __future__ import annotations
 import math
 import time
 import urllib.parse
+from collections import deque
 from dataclasses import dataclass
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
 from tsa_bench.bench.config import BenchConfig, load_bench
+from tsa_bench.protocol.codec import Frame, MessageDecoder, encode
 from tsa_bench.sim.device import SimDevice
 
 __all__ = ["Serial", "SimUrl", "parse_sim_url", "Pacer", "quantum_s"]
@@ -129,7 +139,12 @@ class Serial(SerialBase):
         self.device: SimDevice | None = None
         self.sim_url: SimUrl | None = None
         self._pacer: Pacer | None = None
-        self._rx = bytearray()
+        # output not yet read: frames (or raw bytes) with their size on the wire; the
+        # first item's first ``_head_read`` bytes were already read
+        self._rx: deque[tuple[Frame | bytes, int]] = deque()
+        self._rx_bytes = 0
+        self._head_read = 0
+        self._bytes_decoder = MessageDecoder()   # for raw bytes among frames (the boot delimiter)
         super().__init__(*args, **kwargs)
 
     # -- lifecycle --------------------------------------------------------
@@ -139,10 +154,12 @@ class Serial(SerialBase):
         if self._port is None:
             raise SerialException("Port must be configured before it can be used.")
         self.sim_url = parse_sim_url(self._port)
-        self.device = SimDevice(self.sim_url.bench(), seed=self.sim_url.seed)
+        self.device = SimDevice(self.sim_url.bench(), seed=self.sim_url.seed, frames=True)
         self._pacer = Pacer(self.device, self.sim_url.speed)
         self.device.boot()
-        self._rx = bytearray(self.device.take_output())
+        self._rx.clear()
+        self._rx_bytes = self._head_read = 0
+        self._collect()
         self.is_open = True
 
     def close(self) -> None:
@@ -171,6 +188,12 @@ class Serial(SerialBase):
             raise PortNotOpenError()
         return self.device
 
+    def _collect(self) -> None:
+        assert self.device is not None
+        for item in self.device.take_frames():
+            self._rx.append(item)
+            self._rx_bytes += item[1]
+
     def _pump(self, max_bytes: int, deadline: float | None) -> None:
         """Advance the device by at most one quantum until it says something.
 
@@ -188,7 +211,7 @@ class Serial(SerialBase):
                 time.sleep(min(remaining, max(pacer.wait_s(), 1e-4)))
                 continue
             budget -= dev.advance(step, max_bytes)
-            self._rx += dev.take_output()
+            self._collect()
 
     @property
     def in_waiting(self) -> int:
@@ -196,17 +219,14 @@ class Serial(SerialBase):
         self._check_open()
         if not self._rx:
             self._pump(POLL_CHUNK_BYTES, None)
-        return len(self._rx)
+        return self._rx_bytes - self._head_read
 
     @property
     def out_waiting(self) -> int:
         self._check_open()
         return 0
 
-    def read(self, size: int = 1) -> bytes:
-        self._check_open()
-        if size <= 0:
-            return b""
+    def _wait_for_output(self, size: int) -> None:
         if not self._rx:
             timeout = self._timeout
             if timeout is None:
@@ -214,21 +234,72 @@ class Serial(SerialBase):
             else:
                 deadline = time.monotonic() + timeout if timeout > 0 else None
             self._pump(size, deadline)
-        data = bytes(self._rx[:size])
-        del self._rx[:size]
-        return data
+
+    def read(self, size: int = 1) -> bytes:
+        self._check_open()
+        if size <= 0:
+            return b""
+        self._wait_for_output(size)
+        out = bytearray()
+        while self._rx and len(out) < size:
+            item, n = self._rx[0]
+            data = item if isinstance(item, bytes) else encode(item.message, item.seq)
+            take = min(n - self._head_read, size - len(out))
+            out += data[self._head_read:self._head_read + take]
+            self._consume(take)
+        return bytes(out)
+
+    def _consume(self, k: int) -> None:
+        """Mark ``k`` more bytes of the first item read (dropping it once wholly read)."""
+        self._head_read += k
+        if self._head_read == self._rx[0][1]:
+            self._rx_bytes -= self._head_read
+            self._head_read = 0
+            self._rx.popleft()
+
+    def read_frames(self, size: int = 1) -> list[Frame]:
+        """Like :meth:`read` (same waiting, same ``size`` in wire bytes), but returns the
+        frames whose last byte that read would have returned, decoded."""
+        self._check_open()
+        if size <= 0:
+            return []
+        self._wait_for_output(size)
+        out: list[Frame] = []
+        budget = size
+        while self._rx and budget > 0:
+            item, n = self._rx[0]
+            left = n - self._head_read
+            if left > budget:
+                self._head_read += budget   # a frame read in part: whole on a later call
+                break
+            budget -= left
+            if isinstance(item, bytes):
+                out += self._bytes_decoder.feed(item[self._head_read:])
+            else:
+                out.append(item)
+            self._consume(left)
+        return out
 
     def write(self, data: bytes) -> int:
         dev = self._check_open()
         data = to_bytes(data)
         dev.receive(data)
-        self._rx += dev.take_output()
+        self._collect()
+        return len(data)
+
+    def write_frame(self, data: bytes, seq: int, message) -> int:
+        """Deliver ``message`` (whose frame ``data`` is, with ``seq``) without decoding it."""
+        dev = self._check_open()
+        dev.receive_frame(seq, message)
+        self._collect()
         return len(data)
 
     def reset_input_buffer(self) -> None:
         dev = self._check_open()
         self._rx.clear()
-        dev.take_output()
+        self._rx_bytes = self._head_read = 0
+        self._bytes_decoder = MessageDecoder()
+        dev.take_frames()
 
     def reset_output_buffer(self) -> None:
         self._check_open()

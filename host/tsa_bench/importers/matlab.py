@@ -1,0 +1,118 @@
+"""MATLAB .mat files: v5 through scipy.io, v7.3 (HDF5) through h5py.
+
+Contract of :func:`read_mat`: the variable ``var`` (or, without it, the file's only
+matrix or struct, or all its vectors of one length) becomes the table:
+
+* a struct of vectors: one column per field, named by the field;
+* a matrix: one column per column (the shorter side is the columns), named by position;
+* vectors: one column each, named by the variable.
+
+v7.3 files store arrays transposed (MATLAB is column-major); they are turned back. Rows
+are numbered from 1 in messages (``file:row 12``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tsa_bench.importers.errors import SUPPORTED, ImportFileError
+from tsa_bench.importers.table import Column, SourceTable
+
+
+def _v5(path: Path) -> dict[str, Any]:
+    import scipy.io
+
+    try:
+        raw = scipy.io.loadmat(path, simplify_cells=True)
+    except Exception as exc:  # scipy raises ValueError, TypeError, ... on damaged files
+        raise ImportFileError(f"{path}: looks like a MATLAB v5 .mat file but cannot be read "
+                              f"({type(exc).__name__}: {exc}); supported formats: {SUPPORTED}") from None
+    return {k: v for k, v in raw.items() if not k.startswith("__")}
+
+
+def _h5(node: Any) -> Any:
+    import h5py
+
+    if isinstance(node, h5py.Group):
+        return {k: _h5(v) for k, v in node.items() if not k.startswith("#")}
+    a = node[()]
+    return np.asarray(a).T if getattr(a, "ndim", 0) else a
+
+
+def _v73(path: Path) -> dict[str, Any]:
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            return {k: _h5(v) for k, v in f.items() if not k.startswith("#")}
+    except OSError as exc:
+        raise ImportFileError(f"{path}: looks like a MATLAB v7.3 .mat file but cannot be read ({exc}); "
+                              f"supported formats: {SUPPORTED}") from None
+
+
+def _numeric(v: Any) -> np.ndarray | None:
+    a = np.asarray(v)
+    if a.dtype.kind not in "fiub" or a.size < 1:
+        return None
+    return np.squeeze(a).astype(float)
+
+
+def _describe(d: dict[str, Any]) -> str:
+    parts = []
+    for k, v in d.items():
+        a = _numeric(v)
+        parts.append(f"{k} (struct)" if isinstance(v, dict) else f"{k} {'x'.join(map(str, np.shape(v)))}"
+                     if a is not None else f"{k} (not numeric)")
+    return ", ".join(parts) or "none"
+
+
+def _columns(path: Path, name: str, v: Any) -> tuple[list[Column], bool, list[str]]:
+    if isinstance(v, dict):
+        cols = [(k, _numeric(x)) for k, x in v.items()]
+        cols = [(k, a) for k, a in cols if a is not None and a.ndim == 1]
+        if not cols:
+            raise ImportFileError(f"{path}: struct '{name}' has no numeric vector fields ({_describe(v)})")
+        n = max(len(a) for _, a in cols)
+        kept = [Column(k, a) for k, a in cols if len(a) == n]
+        notes = [f"struct '{name}': fields {', '.join(c.name for c in kept)}"]
+        dropped = [k for k, a in cols if len(a) != n]
+        if dropped:
+            notes.append(f"fields of another length left out: {', '.join(dropped)}")
+        return kept, True, notes
+    a = _numeric(v)
+    if a is None:
+        raise ImportFileError(f"{path}: variable '{name}' is not numeric")
+    if a.ndim == 1:
+        return [Column(name, a)], True, [f"vector '{name}'"]
+    if a.ndim != 2:
+        raise ImportFileError(f"{path}: variable '{name}' has {a.ndim} dimensions; give a matrix, vectors or a struct")
+    if a.shape[0] < a.shape[1]:
+        a = a.T
+    return [Column("", a[:, i].copy()) for i in range(a.shape[1])], False, [
+        f"matrix '{name}' {a.shape[0]}x{a.shape[1]}: columns named by position (--map t=1,...)"]
+
+
+def read_mat(path: Path, var: str | None, fmt: str) -> SourceTable:
+    """Read a .mat file (module contract) into a :class:`SourceTable`."""
+    d = _v5(path) if fmt == "mat5" else _v73(path)
+    version = "v5" if fmt == "mat5" else "v7.3"
+    if var is not None:
+        if var not in d:
+            raise ImportFileError(f"{path}: no variable '{var}' (variables: {_describe(d)})")
+        cols, named, notes = _columns(path, var, d[var])
+    else:
+        structs = [k for k, v in d.items() if isinstance(v, dict)]
+        arrays = {k: a for k, v in d.items() if not isinstance(v, dict) for a in [_numeric(v)] if a is not None}
+        matrices = [k for k, a in arrays.items() if a.ndim == 2]
+        vectors = {k: a for k, a in arrays.items() if a.ndim == 1}
+        if len(structs) + len(matrices) == 1 and not vectors:
+            cols, named, notes = _columns(path, (structs + matrices)[0], d[(structs + matrices)[0]])
+        elif vectors and not structs and not matrices and len({len(a) for a in vectors.values()}) == 1:
+            cols, named, notes = [Column(k, a) for k, a in vectors.items()], True, [f"vectors {', '.join(vectors)}"]
+        else:
+            raise ImportFileError(f"{path}: choose the variable with --var (variables: {_describe(d)})")
+    n = len(cols[0].values)
+    return SourceTable(path, f"MATLAB {version}", cols, np.arange(1, n + 1), None, named, notes, row_prefix="row ")

@@ -1,0 +1,103 @@
+"""The fast simulated path gives the same run file as the framed one.
+
+``sim://`` hands decoded frames to the client (no framing, CRC or decoding) and the
+runner hands samples to the writer in coalesced blocks. The framed path - bytes through
+the codec and the link layer, a document block at every read, as over a pty or simavr -
+must record exactly the same samples, segments and events, and the writer's running
+statistics must say what reading the file back says."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+from tests.runner.helpers import BENCH, open_sim, plan_from_text, run_plan
+from tsa_bench.console.summary import format_run_info
+from tsa_bench.store import RunWriter
+from tsa_bench.store.inspect import inspect_run
+
+PLAN = """name: mixed
+load_g: 300
+sampling_period_s: 0.05
+defaults: {rate_turns_per_s: 4, accel_turns_per_s2: 40}
+steps:
+  - move_to: {turns: 5}
+  - hold: {duration_s: 2}
+  - repeat:
+      count: 4
+      steps:
+        - rotation_sequence: {targets_turns: [7, 9, 7, 5], hold_s: 0.3}
+        - heater: {voltage_V: 2}
+        - hold: {duration_s: 1}
+        - heater: {voltage_V: 0}
+        - sampling: {period_s: 0.1}
+        - hold_until_settled: {max_duration_s: 4, window_s: 2, max_dL_dt_mm_per_s: 1.0}
+        - sampling: {period_s: 0.05}
+  - prompt: {text: "hang 500 g", load_g: 500}
+  - move_to: {turns: 2}
+  - hold: {duration_s: 1}
+"""
+
+
+class BytesOnly:
+    """The sim:// port seen through its byte interface only (the framed path)."""
+
+    def __init__(self, port) -> None:
+        self._port = port
+
+    def __getattr__(self, name):
+        if name in ("read_frames", "write_frame"):
+            raise AttributeError(name)
+        return getattr(self._port, name)
+
+    @property
+    def in_waiting(self) -> int:
+        return self._port.in_waiting
+
+    def read(self, size: int = 1) -> bytes:
+        return self._port.read(size)
+
+    def write(self, data: bytes) -> int:
+        return self._port.write(data)
+
+
+def _contents(path) -> dict:
+    with h5py.File(path) as f:
+        out = {f"samples/{k}": f["samples"][k][()] for k in f["samples"]}
+        out["segments"] = f["segments"][()].tolist()
+        out["events"] = f["events"][()].tolist()
+        out["samples_lost"] = int(f.attrs["samples_lost"])
+    return out
+
+
+def test_fast_and_framed_paths_record_the_same_file(tmp_path):
+    plan = plan_from_text(PLAN)
+    (tmp_path / "fast").mkdir()
+    (tmp_path / "framed").mkdir()
+    fast_stop, fast_client, fast = run_plan(plan, tmp_path / "fast", seed=3)
+    port = BytesOnly(open_sim(3))
+    framed_stop, framed_client, framed = run_plan(plan, tmp_path / "framed", port=port, block_samples=1)
+    assert fast_stop.exit_status == framed_stop.exit_status == "success"
+    assert fast_client._read_frames is not None and framed_client._read_frames is None  # the two paths
+    a, b = _contents(fast), _contents(framed)
+    assert a.keys() == b.keys()
+    for key in a:
+        if key.startswith("samples/"):
+            assert np.array_equal(a[key], b[key], equal_nan=a[key].dtype.kind == "f"), key
+        else:
+            assert a[key] == b[key], key
+    assert len(a["samples/t"]) > 500 and any(e[1] == b"settled" or e[1] == b"not_settled" for e in a["events"])
+
+
+def test_the_writers_running_statistics_match_the_file(tmp_path):
+    writer = RunWriter(tmp_path / "run.h5")
+    stop, _, path = run_plan(plan_from_text(PLAN), tmp_path, seed=4, writer=writer)
+    assert stop.exit_status == "success"
+    kept, read = writer.summary(), inspect_run(path)
+    assert format_run_info(kept) == format_run_info(read)
+    assert kept.n_samples == read.n_samples and kept.counter_gaps == read.counter_gaps == 0
+    for name, c in read.columns.items():
+        k = kept.columns[name]
+        assert (k.count, k.finite) == (c.count, c.finite), name
+        assert np.allclose([k.min, k.max, k.mean], [c.min, c.max, c.mean], rtol=1e-12, equal_nan=True), name
+    assert BENCH.name  # the shipped simulated bench ran
