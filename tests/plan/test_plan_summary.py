@@ -21,7 +21,8 @@ def test_summary_figures() -> None:
     )
     s = load_plan_text(text, BENCH).summary()
     assert s.segment_count == 1 + 1 + 6 + 1 + 1 + 8 + 1
-    assert s.counts_by_kind == {"move": 6, "hold": 8, "settle": 0, "heater": 3, "sampling": 1, "prompt": 1}
+    assert s.counts_by_kind == {"move": 6, "hold": 8, "settle": 0, "heater": 3, "sampling": 1, "prompt": 1,
+                                 "track_length": 0}
     assert s.twist_range_turns == (-6, 10) and s.final_twist_turns == 0
     assert s.voltage_range_V == (0, 6) and s.final_voltage_V == 0
     assert s.sampling_period_range_s == (0.02, 0.1)

@@ -19,10 +19,16 @@ PROTOCOLS = sorted((ROOT / "configs" / "protocols").glob("*.yaml"))
 
 
 def simulate(protocol: Path, out: Path, seed: int = 2, consumers: tuple = ()) -> Path:
-    """Run ``protocol`` on the default simulated bench as fast as possible; return the run file."""
+    """Run ``protocol`` on the default simulated bench (or the preset its metadata names, for a
+    protocol of one string) as fast as possible; return the run file."""
     bench = load_bench(None)
     plan = load_plan(protocol, bench.limits)
-    port = serial.serial_for_url(f"sim://?seed={seed}", timeout=0.05)
+    url = f"sim://?seed={seed}"
+    if "bench" in plan.metadata:
+        preset = ROOT / "configs" / "bench" / f"{plan.metadata['bench']}.yaml"
+        bench = load_bench(preset)
+        url += f"&bench={preset}"
+    port = serial.serial_for_url(url, timeout=0.05)
     try:
         client = BenchClient(port, ack_timeout_s=bench.ack_timeout_s)
         client.connect(bench.boot_timeout_s)

@@ -22,7 +22,13 @@ EXPECTED = {
     "quasi-static-self-sensing": {"resistance_length", "transient"},
     "quasi-static-self-sensing-settled": {"resistance_length", "transient"},
     "transient-steps": {"transient"}, "lifetime": {"drift"},
+    "track-length-training": {"resistance_length", "transient"},
+    "estimate-load-training": {"resistance_length", "transient"},
+    "estimate-load-changes": {"resistance_length", "transient"},
+    "track-length-steps": {"tracking", "resistance_length"}, "track-length-loads": {"tracking"},
 }
+#: Protocols whose runs carry the runner's tracking columns (docs/run-format.md) beyond the contract.
+TRACKING = {"track-length-steps", "track-length-loads"}
 #: Figures a protocol's data cannot support (no load steps, no heating, no cycles, no twist).
 FORBIDDEN = {
     "stiffness-3ply": {"loops", "voltage", "drift", "transient", "resistance_length"},
@@ -45,8 +51,11 @@ def test_every_shipped_protocol_gets_its_thesis_figures(protocol_runs, tmp_path)
         assert "timeseries" in kinds and EXPECTED[name] <= kinds, (name, kinds)
         assert not (FORBIDDEN.get(name, set()) & kinds), (name, kinds)
         assert set(rep.skipped) | kinds == {"timeseries", "stiffness", "loops", "voltage", "resistance_length",
-                                            "transient", "drift", "extras", "extras_xy"}
-        assert not {"extras", "extras_xy"} & kinds  # protocol runs hold only contract columns
+                                            "transient", "drift", "tracking", "extras", "extras_xy"}
+        if name in TRACKING:  # the estimate, target and controller state columns
+            assert {"tracking", "extras"} <= kinds
+        else:
+            assert not {"extras", "extras_xy", "tracking"} & kinds  # only contract columns
         for fig in rep.figures:
             _png_ok(fig.path)
         page = rep.index.read_text()

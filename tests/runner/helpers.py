@@ -16,20 +16,23 @@ from tsa_bench.store import RunWriter
 BENCH = load_bench(None)
 
 
-def open_sim(seed: int = 1, speed: float | None = None):
-    url = f"sim://?seed={seed}" + (f"&speed={speed}" if speed else "")
+def open_sim(seed: int = 1, speed: float | None = None, bench_path: str | None = None):
+    url = f"sim://?seed={seed}" + (f"&speed={speed}" if speed else "") + (f"&bench={bench_path}" if bench_path else "")
     return serial.serial_for_url(url, timeout=0.05)
 
 
-def run_plan(plan, out: Path, *, port=None, seed: int = 1, writer: RunWriter | None = None, block_samples: int = 2048):
-    """Run ``plan`` on the simulated bench (or ``port``); return (RunStop, client, path).
+def run_plan(plan, out: Path, *, port=None, seed: int = 1, writer: RunWriter | None = None, block_samples: int = 2048,
+             bench=None):
+    """Run ``plan`` on the simulated bench (``bench``: a BenchConfig, default sim.yaml; or
+    ``port``); return (RunStop, client, path).
     ``block_samples=1`` hands documents to the writer at every read (not coalesced)."""
-    port = port if port is not None else open_sim(seed)
-    client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
-    client.connect(BENCH.boot_timeout_s)
+    bench = bench if bench is not None else BENCH
+    port = port if port is not None else open_sim(seed, bench_path=bench.path if bench is not BENCH else None)
+    client = BenchClient(port, ack_timeout_s=bench.ack_timeout_s)
+    client.connect(bench.boot_timeout_s)
     writer = writer if writer is not None else RunWriter(out / "run.h5")
     path = writer.path
-    runner = Runner(client, plan, BENCH, [writer], AutoOperator(), backend="sim", port_name="sim://",
+    runner = Runner(client, plan, bench, [writer], AutoOperator(), backend="sim", port_name="sim://",
                     block_samples=block_samples)
     stop = runner.run()
     port.close()

@@ -3,7 +3,7 @@
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
 - :mod:`.data`: info, ls, report, watch, export; :mod:`.importing`: import
 - :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
-- :mod:`.models`: fit, predict, manipulator
+- :mod:`.models`: fit, predict, manipulator; :mod:`.estimate`: estimate
 - :mod:`.diagnose`: diagnose
 - :mod:`.reproduce`: reproduce
 - :mod:`.sweep`: sweep
@@ -48,6 +48,7 @@ COMMANDS: dict[str, str] = {
     "jog": "rig:jog",
     "calibrate": "calibrate:calibrate",
     "zero": "zero:zero",
+    "estimate": "estimate:estimate",
 }
 
 

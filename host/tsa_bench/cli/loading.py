@@ -73,7 +73,9 @@ def load_plan_or_exit(path: str, bench):
         plan = load_plan(found, bench.limits)
     except PlanErrors as exc:
         fail(f"{found} is not a valid protocol; nothing was sent to any device:\n{exc}")
-    problems = plan_problems(plan, bench.steps_per_turn)
+    from tsa_bench.runner.tracking import bench_problems
+
+    problems = plan_problems(plan, bench.steps_per_turn) + bench_problems(plan, bench.name)
     if problems:
         fail(f"{found} cannot be sent to bench '{bench.name}'; nothing was sent to any device:\n"
              + "\n".join(problems))

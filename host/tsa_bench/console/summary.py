@@ -38,4 +38,4 @@ def format_run_info(info: RunInfo, *, verbose: bool = True) -> str:
 
 
 def _column_line(name: str, c: ColumnStats) -> str:
-    return f"{name:<16}{c.units:<8}{c.min:>12.4g}{c.mean:>12.4g}{c.max:>12.4g}{c.finite:>10d}"
+    return f"{name + ' ':<16}{c.units:<8}{c.min:>12.4g}{c.mean:>12.4g}{c.max:>12.4g}{c.finite:>10d}"

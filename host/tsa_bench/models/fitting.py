@@ -285,12 +285,48 @@ def fit(model: str, runs: list[RunData], input_col: str | None = None, output_co
     saved.options = {"levels": levels} if model == "preisach" else {"order": order} if model == "polynomial" else {}
     if load_g is not None:
         saved.options["load_g"] = load_g
+    if model in FIXED_IO:
+        saved.options.update(validity(runs))
     saved.training_files = [r.path for r in runs]
     for r in runs:
         saved.metrics["identification"][r.path] = evaluate(saved, r, obj)[1]
     for r in validate or []:
         saved.metrics["validation"][r.path] = evaluate(saved, r, obj)[1]
     return saved
+
+
+def validity(runs: list[RunData]) -> dict[str, Any]:
+    """Where a strain-resistance or self-sensing model was identified: the range of the
+    training holds' mean lengths (mm) and resistances (ohm), and the bench name the
+    training runs were recorded on (when they all name one)."""
+    lengths, resistances, benches = [], [], set()
+    for r in runs:
+        s = series(r)
+        moving = s.motor_moving
+        stopped = ~moving
+        lengths.append(s.length_mm[stopped & np.isfinite(s.length_mm)])
+        resistances.append(s.resistance_ohm[stopped & np.isfinite(s.resistance_ohm)])
+        benches.add(_bench_name(r.bench_text))
+    ll, rr = np.concatenate(lengths), np.concatenate(resistances)
+    out: dict[str, Any] = {}
+    if len(ll):
+        out["length_range_mm"] = [round(float(ll.min()), 4), round(float(ll.max()), 4)]
+    if len(rr):
+        out["resistance_range_ohm"] = [round(float(rr.min()), 6), round(float(rr.max()), 6)]
+    if len(benches) == 1 and None not in benches:
+        out["bench"] = benches.pop()
+    return out
+
+
+def _bench_name(bench_text: str) -> str | None:
+    import yaml
+
+    try:
+        doc = yaml.safe_load(bench_text) if bench_text else None
+    except yaml.YAMLError:
+        return None
+    name = doc.get("name") if isinstance(doc, dict) else None
+    return name if isinstance(name, str) else None
 
 
 def parameter_count(saved: SavedModel) -> int:

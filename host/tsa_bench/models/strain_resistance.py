@@ -124,7 +124,8 @@ class StrainResistanceModel:
         lin = problem.linear(best.x)
         nh = n_hysteresis
         return cls(b1, b2, alpha, beta, lam, eps, (l1, l2), (float(lin[nh]), float(lin[nh + 1])),
-                   tuple(float(p) for p in lin[:nh]), sign, float(lin[nh + 2]))
+                   # bvls may return a bound-constrained weight a rounding error below 0 (-1e-20)
+                   tuple(max(float(p), 0.0) for p in lin[:nh]), sign, float(lin[nh + 2]))
 
     @property
     def a_ohm_per_mm(self) -> float:

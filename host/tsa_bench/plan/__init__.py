@@ -9,7 +9,7 @@ Typical use::
     for segment in plan.segments: ...
 """
 
-from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle
+from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle, TrackLength
 from tsa_bench.plan.errors import PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.loader import DEFAULT_SAMPLING_PERIOD_S, load_plan, load_plan_text
@@ -32,6 +32,7 @@ __all__ = [
     "SetHeater",
     "SetSampling",
     "Settle",
+    "TrackLength",
     "format_duration",
     "format_summary",
     "load_plan",

@@ -97,10 +97,59 @@ class Prompt:
         return {"text": self.text, "load_g": self.load_g}
 
 
-Action: TypeAlias = Move | Hold | Settle | SetHeater | SetSampling | Prompt
+@dataclass(frozen=True)
+class TrackLength:
+    """Closed-loop length tracking from resistance alone (:mod:`tsa_bench.control`): reach each
+    ``(length_mm, hold_s)`` of ``targets`` in turn and keep it for ``hold_s`` seconds, judged by the
+    self-sensing model at ``model_path``; moves of at most ``max_step_turns`` at
+    ``rate_turns_per_s`` / ``accel_turns_per_s2``. ``valid_length_mm`` is the model's validity
+    range, ``model_bench`` the bench its training runs were recorded on (None: not recorded)."""
+
+    model_path: str
+    targets: tuple[tuple[float, float], ...]
+    tolerance_mm: float
+    gain: float
+    initial_mm_per_turn: float
+    settle_s: float
+    window_s: float
+    max_step_turns: float
+    rate_turns_per_s: float
+    accel_turns_per_s2: float
+    timeout_s: float
+    on_timeout: str
+    valid_length_mm: tuple[float, float]
+    model_bench: str | None
+    kind: ClassVar[str] = "track_length"
+
+    def params(self) -> dict[str, Any]:
+        return {
+            "controller": "self-sensing step controller",
+            "model_path": self.model_path,
+            "targets_mm": [t for t, _ in self.targets],
+            "hold_s": [h for _, h in self.targets],
+            "tolerance_mm": self.tolerance_mm,
+            "gain": self.gain,
+            "initial_mm_per_turn": self.initial_mm_per_turn,
+            "settle_s": self.settle_s,
+            "window_s": self.window_s,
+            "max_step_turns": self.max_step_turns,
+            "rate_turns_per_s": self.rate_turns_per_s,
+            "accel_turns_per_s2": self.accel_turns_per_s2,
+            "timeout_s": self.timeout_s,
+            "on_timeout": self.on_timeout,
+            "valid_length_mm": list(self.valid_length_mm),
+        }
+
+    @property
+    def longest_s(self) -> float:
+        """Upper bound of its duration (s): every target's timeout and hold."""
+        return sum(self.timeout_s + h for _, h in self.targets)
+
+
+Action: TypeAlias = Move | Hold | Settle | SetHeater | SetSampling | Prompt | TrackLength
 
 #: All segment kinds, in a stable display order.
-KINDS: tuple[str, ...] = ("move", "hold", "settle", "heater", "sampling", "prompt")
+KINDS: tuple[str, ...] = ("move", "hold", "settle", "heater", "sampling", "prompt", "track_length")
 
 
 @dataclass(frozen=True)

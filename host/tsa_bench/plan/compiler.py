@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 from yaml import Node
 
-from tsa_bench.plan.actions import Move, Segment
+from tsa_bench.plan.actions import Move, Segment, TrackLength
 from tsa_bench.plan.errors import ErrorSink
 from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
@@ -59,19 +59,28 @@ class _Compiler:
     segments: list[Segment] = field(default_factory=list)
     position_turns: float | None = 0.0   # None: unknown after an invalid motion step
     violations: dict[int, _TwistViolation] = field(default_factory=dict)
+    tracked_at: str | None = None        # source of the track_length that made the twist unknown
 
     def run(self, ops: Sequence[Op], cycle: int | None, trail: tuple[tuple[RepeatOp | ForEachOp, int], ...]) -> None:
         segments = self.segments
         for op in ops:
             if type(op) is ActionOp:
                 segments.append(Segment(len(segments), op.action, cycle, op.source))
+                if isinstance(op.action, TrackLength):  # the twist it ends at is decided while running
+                    self.position_turns, self.tracked_at = None, op.source
             elif type(op) is MoveOp:
                 if op.relative:
                     pos = self.position_turns
                     target = None if pos is None else round(pos + op.turns, _TARGET_DECIMALS)
+                    if pos is None and self.tracked_at is not None:
+                        self.sink.add(op.node, op.field, f"move_by after the track_length at {self.tracked_at}: "
+                                                         "the twist there is decided while running",
+                                      "move_to (an absolute twist)")
                 else:
                     target = op.turns
                 self.position_turns = target
+                if not op.relative:
+                    self.tracked_at = None
                 if target is None:
                     continue
                 self._check_twist(op, target, trail)

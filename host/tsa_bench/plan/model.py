@@ -3,7 +3,9 @@
 Units: turns, V, s, g as in :mod:`tsa_bench.plan.actions`. Summary conventions: the run
 starts at 0 turns with the heater at 0 V, so both ranges include 0; move durations are
 trapezoidal-profile estimates; prompts wait for the operator and count 0 s; a
-``hold_until_settled`` counts its maximum duration (the estimate is an upper bound).
+``hold_until_settled`` counts its maximum duration and a ``track_length`` every target's
+timeout and hold (the estimate is an upper bound); the twist a ``track_length`` reaches is
+decided while running, so the twist range is that of the moves.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tsa_bench.motion import TrapezoidProfile
-from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle
+from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle, TrackLength
 from tsa_bench.plan.limits import Limits
 
 
@@ -79,6 +81,8 @@ class Plan:
                 hold_s += action.duration_s
             elif isinstance(action, Settle):
                 hold_s += action.max_duration_s
+            elif isinstance(action, TrackLength):
+                hold_s += action.longest_s
             elif isinstance(action, SetHeater):
                 voltage = action.voltage_V
                 volt_lo, volt_hi = min(volt_lo, voltage), max(volt_hi, voltage)

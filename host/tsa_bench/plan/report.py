@@ -37,6 +37,8 @@ def describe_segment(seg: Segment) -> str:
         "heater": lambda: f"{a['voltage_V']:g} V",
         "sampling": lambda: f"period {a['period_s']:g} s",
         "prompt": lambda: repr(a["text"]) + ("" if a["load_g"] is None else f", load {a['load_g']:g} g"),
+        "track_length": lambda: "to " + ", ".join(f"{t:g} mm (hold {h:g} s)" for t, h in zip(a["targets_mm"], a["hold_s"]))
+                                + f" from resistance, model {a['model_path']}",
     }[seg.kind]()
     where = seg.source if seg.cycle is None else f"cycle {seg.cycle}, {seg.source}"
     return f"#{seg.index:<6d} {seg.kind:<8s} {text}  ({where})"

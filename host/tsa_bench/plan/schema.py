@@ -75,6 +75,24 @@ STEPS: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
                   "values": {"type": "array", "minItems": 1, "maxItems": MAX_FOR_EACH_VALUES,
                              "items": {"type": ["number", "string", "boolean"]}},
                   "steps": {"$ref": "#/$defs/steps"}}),
+    "track_length": (
+        "closed-loop length control from resistance alone (self-sensing model; docs/control.md)", ("model",),
+        {"model": _text("self-sensing model JSON from `tsa-bench fit self-sensing` (relative to the protocol)"),
+         "length_mm": _num("one target length, mm", exclusiveMinimum=0),
+         "hold_s": _num("keep the target this long once reached, s", minimum=0, maximum=MAX_HOLD_S),
+         "targets": {"type": "array", "minItems": 1, "items": {
+             "type": "object", "required": ["length_mm"], "additionalProperties": False,
+             "properties": {"length_mm": _num("target length, mm", exclusiveMinimum=0),
+                            "hold_s": _num("s", minimum=0, maximum=MAX_HOLD_S)}}},
+         "tolerance_mm": _num("error at which a target counts as reached, mm (default 0.1)", exclusiveMinimum=0),
+         "gain": _num("fraction of the error corrected per move (default 0.8)", exclusiveMinimum=0, maximum=1.5),
+         "initial_mm_per_turn": _num("first guess of dL/dturn, mm/turn (default -0.8)"),
+         "settle_s": _num("wait after each stop before judging, s (default 5)", exclusiveMinimum=0),
+         "window_s": _num("estimate averaged over at most this much of a hold, s (default 10)", exclusiveMinimum=0),
+         "max_step_turns": _num("largest single correction, turns (default 10)", exclusiveMinimum=0),
+         "rate_turns_per_s": _RATE, "accel_turns_per_s2": _ACCEL,
+         "timeout_s": _num("per target, s (default 180)", exclusiveMinimum=0),
+         "on_timeout": {"enum": ["continue", "fail"]}}),
 }
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from tsa_bench.report import run_figures as rf
+from tsa_bench.report.control_figures import fig_tracking, has_tracking
 from tsa_bench.report.extra_figures import extra_columns, fig_extras, fig_extras_xy
 from tsa_bench.report.fig_common import DPI, FORMATS, Figure, finite_any_col
 from tsa_bench.report.html import write_index
@@ -34,6 +35,7 @@ KINDS: dict[str, tuple[Callable[[RunData, Path], str | None], str]] = {
     "resistance_length": (rf.fig_resistance_length, "Fig. 2.7(c)-(f)"),
     "transient": (rf.fig_transient, "Fig. 2.8(a)-(b)"),
     "drift": (rf.fig_drift, "Fig. 2.8(d)"),
+    "tracking": (fig_tracking, "-- (thesis 5.2: length control from resistance)"),
     "extras": (fig_extras, "-- (channels beyond the contract)"),
     "extras_xy": (fig_extras_xy, "-- (channels beyond the contract)"),
 }
@@ -76,6 +78,7 @@ def select_figures(run: RunData) -> tuple[list[str], dict[str, str]]:
         "transient": (has_r and len(stops) >= 3, "needs at least 3 rests of 2 s or more after a move, "
                                                  "with resistance measured"),
         "drift": (n_cycles >= 5, f"needs a repeat block of at least 5 cycles (has {n_cycles})"),
+        "tracking": (has_tracking(run), "the run has no track_length (length_target column)"),
         "extras": (len(extras) >= 1, "the run has no columns beyond the contract"),
         "extras_xy": (len(extras) >= 2, "needs two or more columns beyond the contract"),
     }

@@ -6,7 +6,8 @@ DWELL or, when it is longer than a DWELL can say (:data:`MAX_DWELL_US`, 4294.967
 several DWELLs of near-equal length that add up to it exactly (to the microsecond); a
 settling hold is given as the DWELLs of its maximum duration (for the wire checks: the
 runner sends it in short DWELLs, :mod:`tsa_bench.runner.settle`).
-Prompts have no device command (the host handles them). :func:`plan_problems` lists,
+Prompts have no device command (the host handles them), nor has a ``track_length`` (its
+moves and DWELLs are decided while running, :mod:`tsa_bench.runner.tracking`). :func:`plan_problems` lists,
 for a plan on a bench, every segment whose commands would not fit their wire fields
 (a target beyond the 32-bit step range on a bench without a twist limit, a heater
 voltage beyond 65.535 V, a load beyond the simulated bench's 32-bit milligrams), so
@@ -19,7 +20,7 @@ import math
 from pathlib import Path
 from typing import NamedTuple
 
-from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling, Settle
+from tsa_bench.plan import Hold, Move, Plan, Prompt, Segment, SetHeater, SetSampling, Settle, TrackLength
 from tsa_bench.protocol import encode, msg
 
 NO_SEGMENT = 0xFFFF           # wire value for commands outside the plan (setup, teardown)
@@ -50,7 +51,7 @@ def device_commands(seg: Segment, steps_per_turn: int) -> list[NamedTuple]:
         return [msg.SetHeater(wire, round(a.voltage_V * 1000))]
     if isinstance(a, SetSampling):
         return [msg.SetSampling(wire, round(a.period_s * 1e6))]
-    if isinstance(a, Prompt):
+    if isinstance(a, (Prompt, TrackLength)):  # the host answers prompts; tracking decides while running
         return []
     raise TypeError(f"segment {seg.index} ({seg.kind}) has no device command")
 

@@ -43,7 +43,8 @@ class StorageFull(OSError):
 
 @dataclass
 class SampleBlock:
-    """A batch of consecutive samples as equal-length columns (keys of SAMPLE_COLUMNS)."""
+    """A batch of consecutive samples as equal-length columns (keys of SAMPLE_COLUMNS and of
+    the run's ``RunStart.extra_columns``)."""
 
     columns: dict[str, np.ndarray]
 
@@ -68,6 +69,8 @@ class RunStart:
     estimated_duration_s: float
     metadata: dict[str, Any] = field(default_factory=dict)
     extra_attrs: dict[str, Any] = field(default_factory=dict)   # more root attributes (a resumed run's link)
+    # more sample columns every block carries: name -> (numpy dtype, units, {attribute: text})
+    extra_columns: dict[str, tuple[str, str, dict[str, str]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

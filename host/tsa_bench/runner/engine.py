@@ -39,7 +39,7 @@ import numpy as np
 
 from tsa_bench.bench import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
-from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle
+from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.runner.checks import PlanRejected, check_plan_against_device  # noqa: F401 (re-exported)
 from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
@@ -52,6 +52,7 @@ from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
 from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, row, sample_block
 from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
+from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
 
 COUNTER_MOD = 1 << 32         # SAMPLE.counter is a u32
 BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
@@ -125,6 +126,7 @@ class Runner:
         # heartbeat every 1/16 of the watchdog: seen through sample timestamps that lag the
         # device clock, the gap the device sees stays within an eighth of the watchdog
         self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
+        self._tracking = Tracking.for_plan(plan, self.spt)   # track_length segments (runner/tracking.py)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
     # -- emit ------------------------------------------------------------------
@@ -171,7 +173,8 @@ class Runner:
             port=self.port_name, firmware=f"{ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}",
             identity=ident._asdict(), n_segments=len(plan.segments),
             estimated_duration_s=summary.duration_s, metadata=dict(self.metadata),
-            extra_attrs=self.resume.attributes() if self.resume is not None else {})
+            extra_attrs=self.resume.attributes() if self.resume is not None else {},
+            extra_columns=TRACKING_COLUMNS if self._tracking else {})
         status, reason = "success", "all segments done"
         installed_here = self.interrupts.install()
         self.client.on_wait = self.interrupts.check
@@ -294,6 +297,10 @@ class Runner:
                 continue
             if isinstance(seg.action, Settle):
                 if not self._feed_settle(seg):
+                    return
+                continue
+            if isinstance(seg.action, TrackLength):
+                if not self._tracking.feed(self, seg):  # type: ignore[union-attr]
                     return
                 continue
             if not self._to_send:          # a long hold is several DWELLs
@@ -433,6 +440,9 @@ class Runner:
         seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
         self._rows.append(row(s, seg, self._load_g))
         self.samples += 1
+        if self._tracking is not None:
+            self._tracking.on_sample(self._t(s.t_us), resistance_ohm(self.bench, s.resistance_raw, s.adc_flags),
+                                     bool(s.motor_moving), s.step_position / self.spt, seg)
         st = self._settle
         if st is not None and st.index == seg and st.settled is None:
             st.add(self._t(s.t_us), length_mm(self.bench, s.position_raw, s.adc_flags),
@@ -500,7 +510,7 @@ class Runner:
 
     def _close_open_segments(self) -> None:
         """Record the segment(s) cut short by an abort or failure as not completed."""
-        for idx in range(self._oldest, self._next):
+        for idx in range(self._oldest, min(self._next + 1, len(self._done))):  # + the one being sent (settle, track)
             if not self._done[idx] and not np.isnan(self._t_start[idx]):
                 self._finish_segment(idx, float(self._t_start[idx]), self._t(self._now_us), False)
 
@@ -509,7 +519,10 @@ class Runner:
         if self._rows:
             rows, self._rows = self._rows, []
             self._last_block_wall = time.monotonic()
-            self._emit("on_samples", sample_block(rows, self.bench, self.spt, self._t0_us or 0))
+            block = sample_block(rows, self.bench, self.spt, self._t0_us or 0)
+            if self._tracking is not None:
+                self._tracking.annotate(block)
+            self._emit("on_samples", block)
         docs, self._later = self._later, []
         for i, (name, doc) in enumerate(docs):
             try:

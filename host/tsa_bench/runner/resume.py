@@ -6,8 +6,9 @@ Contract: :func:`resume_point` takes the first run (as read by
 :func:`~tsa_bench.store.read_run`) and its plan compiled again from the protocol text
 it stored, and returns the :class:`ResumePoint`: the first segment to run and the
 state the plan had at its start (the target of the last move before it, the rate and
-acceleration of that move, the heater voltage, the sampling period and the declared
-load). The first segment to run is the first one the run did not complete; a segment
+acceleration of that move - or, when a ``track_length`` came after that move, the twist
+the run recorded at the end of it, at the track's rate - the heater voltage, the sampling
+period and the declared load). The first segment to run is the first one the run did not complete; a segment
 whose samples show the device had moved past it counts as completed (its SEGMENT_DONE
 may have been lost, or the run was killed before its record was flushed), and the one
 the device was executing is run again from its start. The runner brings the rig to that
@@ -23,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from tsa_bench.plan import Move, Plan, Prompt, SetHeater, SetSampling
+from tsa_bench.plan import Move, Plan, Prompt, SetHeater, SetSampling, TrackLength
 
 
 class CannotResume(ValueError):
@@ -92,11 +93,14 @@ def resume_point(run, plan: Plan, path: str | Path) -> ResumePoint:
     if k >= n:
         raise CannotResume(f"{path}: every segment of the protocol was done; there is nothing to resume")
     move: Move | None = None
+    tracked: int | None = None     # a track_length after the last move: its twist was decided while running
     heater, period, load = 0.0, plan.sampling_period_s, plan.load_g
     for seg in plan.segments[:k]:
         a = seg.action
         if isinstance(a, Move):
-            move = a
+            move, tracked = a, None
+        elif isinstance(a, TrackLength):
+            tracked = seg.index
         elif isinstance(a, SetHeater):
             heater = a.voltage_V
         elif isinstance(a, SetSampling):
@@ -110,5 +114,13 @@ def resume_point(run, plan: Plan, path: str | Path) -> ResumePoint:
         turns = 0.0
     else:
         turns, rate, accel = move.target_turns, move.rate_turns_per_s, move.accel_turns_per_s2
+    if tracked is not None:  # the twist the run recorded at the end of that track_length
+        seg_col = np.asarray(run.samples["segment"])
+        rows = np.flatnonzero(seg_col == tracked)
+        if not len(rows):
+            raise CannotResume(f"{path}: no samples of the track_length segment {tracked}; its final twist is unknown")
+        t_action: TrackLength = plan.segments[tracked].action  # type: ignore[assignment]
+        turns = float(np.asarray(run.samples["turns"])[rows[-1]])
+        rate, accel = t_action.rate_turns_per_s, t_action.accel_turns_per_s2
     return ResumePoint(str(path), str(run.attrs.get("created", "")), k, n, turns, rate, accel, heater, period,
                        load, plan.segments[k].source)

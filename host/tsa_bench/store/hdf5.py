@@ -157,13 +157,16 @@ class RunWriter:
         g = f.create_group("samples")
         packed = {"compression": "gzip", "compression_opts": self.compression_level, "shuffle": True} \
             if self.compression_level else {}
-        for name, (dtype, units) in SAMPLE_COLUMNS.items():
+        columns = {**{k: (d, u, {}) for k, (d, u) in SAMPLE_COLUMNS.items()}, **start.extra_columns}
+        for name, (dtype, units, attrs) in columns.items():
             fill = np.nan if dtype == "f8" else 0
             ds = g.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(self.chunk_rows,), dtype=dtype,
                                   fillvalue=fill, **packed)
             ds.attrs["units"] = units
+            for key, value in attrs.items():
+                ds.attrs[key] = value
         g["t"].make_scale("t")  # xarray, netCDF and HDFView see time as the dimension of every column
-        for name in SAMPLE_COLUMNS:
+        for name in columns:
             if name != "t":
                 g[name].dims[0].attach_scale(g["t"])
         seg = f.create_dataset("segments", shape=(0,), maxshape=(None,), chunks=(1024,), dtype=SEGMENT_DTYPE)
@@ -171,7 +174,7 @@ class RunWriter:
             seg.attrs[f"{field}_units"] = units
         ev = f.create_dataset("events", shape=(0,), maxshape=(None,), chunks=(256,), dtype=EVENT_DTYPE)
         ev.attrs["t_units"] = "s"
-        self._columns = {name: _Appender(g[name]) for name in SAMPLE_COLUMNS}
+        self._columns = {name: _Appender(g[name]) for name in columns}
         self._segment_rows, self._event_rows = _Appender(seg), _Appender(ev)
         self.flush()
 

@@ -18,7 +18,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
 from tsa_bench.store.hdf5 import EVENT_DTYPE
 from tsa_bench.store.live import SAMPLE_FIELDS, LiveFormatError, LiveTail, sidecar_path
 
@@ -53,19 +52,21 @@ def recover_killed_run(run_path: str | Path) -> int:
         if str(f.attrs.get("exit_status", "")) != "running":
             return 0
         g = f["samples"]
-        n = min(g[name].shape[0] for name in SAMPLE_COLUMNS if name in g)
-        for name in SAMPLE_COLUMNS:
-            if name in g and g[name].shape[0] != n:
+        columns = [name for name in g if isinstance(g[name], h5py.Dataset) and g[name].ndim == 1
+                   and g[name].maxshape[0] is None]   # the contract's and a runner's extra columns
+        n = min(g[name].shape[0] for name in columns)
+        for name in columns:
+            if g[name].shape[0] != n:
                 g[name].resize((n,))
         counters = g["counter"][max(0, n - 1):n] if "counter" in g else np.zeros(0)
         last = int(counters[-1]) if len(counters) else None
         new = records if last is None else records[records["counter"].astype(np.int64) > last]
         k = len(new)
         if k:
-            for name in SAMPLE_COLUMNS:
-                if name in g and name in SAMPLE_FIELDS:
-                    ds = g[name]
-                    ds.resize((n + k,))
+            for name in columns:   # columns the sidecar lacks get their fill value (NaN / 0)
+                ds = g[name]
+                ds.resize((n + k,))
+                if name in SAMPLE_FIELDS:
                     ds[n:] = new[name].astype(ds.dtype)
         t_end = float(new["t"][-1]) if k else (float(g["t"][n - 1]) if n else 0.0)
         detail = (f"{k} samples after the last flush recovered from the live sidecar {side.name}" if tail
