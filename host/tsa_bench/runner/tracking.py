@@ -188,19 +188,8 @@ class Tracking:
 
 def _send(runner: Runner, seg: Segment, command: Any) -> bool:
     """Queue one device command of ``seg`` (False: the queue is full, try later)."""
-    from tsa_bench.runner.engine import RunFailed
-
-    ack = runner._command(command)
-    if ack.status == msg.Status.QUEUE_FULL:
-        runner._free = 0
+    if not runner._accepted(runner._command(command), seg):
         return False
-    if ack.status == msg.Status.BAD_STATE:
-        runner._explain_bad_state()
-    if ack.status != msg.Status.OK:
-        raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
-                        f"{msg.Status(ack.status).name.lower()}")
-    runner._free = ack.queue_free
-    runner._last_sent_wire = seg.index % WIRE_SEGMENTS
     runner._parts[seg.index] += 1
     return True
 
