@@ -9,7 +9,6 @@ and renamed; an existing file is never replaced, and nothing is left behind on f
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.store.hdf5 import CHUNK, RunWriter
+from tsa_bench.store.replace import replacing
 
 
 def fill(data: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
@@ -45,9 +45,8 @@ def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras
     if out.exists():
         raise FileExistsError(out)
     n = len(samples["t"])
-    tmp = out.with_name(out.name + ".importing")
-    writer = RunWriter(tmp)
-    try:
+    with replacing(out, ".importing") as tmp:
+        writer = RunWriter(tmp)
         writer.on_start(start)
         writer.on_samples(SampleBlock(samples))
         for s in segments:
@@ -60,10 +59,6 @@ def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras
                     ds = g.create_dataset(name, data=values.astype("f8"), maxshape=(None,), chunks=(CHUNK,),
                                           fillvalue=np.nan)
                     ds.attrs["units"] = unit
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return out
 
 

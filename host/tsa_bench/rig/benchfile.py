@@ -12,7 +12,6 @@ it to a new file (never over an existing one) through a temporary name.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import yaml
@@ -20,6 +19,7 @@ from yaml import MappingNode, ScalarNode, SequenceNode
 
 from tsa_bench.bench import BenchConfigError, parse_bench
 from tsa_bench.documents import DocumentError, parse_yaml
+from tsa_bench.store.replace import replacing
 
 SECTIONS = {"position": "position_sensor", "resistance": "resistance_sensor"}
 
@@ -121,13 +121,9 @@ def write_new_bench(text: str, source: str, out: str | Path, quantity: str, resu
     for key, value in result.items():
         if abs(got[key] - value) > 1e-9 * max(1.0, abs(value)):
             raise BenchWriteError(f"writing {key} failed: the new file reads {got[key]!r}, not {value!r}")
-    tmp = path.with_name(path.name + ".writing")
     try:
-        tmp.write_text(new, encoding="utf-8")
-        os.replace(tmp, path)
+        with replacing(path) as tmp:
+            tmp.write_text(new, encoding="utf-8")
     except OSError as exc:
         raise BenchWriteError(f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path

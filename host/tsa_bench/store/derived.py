@@ -9,13 +9,14 @@ An existing ``out`` is never replaced, and a column name the file already has is
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
+
+from tsa_bench.store.replace import replacing
 
 
 class DerivedFileError(ValueError):
@@ -30,27 +31,23 @@ def write_with_column(source: str | Path, out: str | Path, name: str, values: np
         raise DerivedFileError(f"{dst} already exists; choose another file (nothing is overwritten)")
     if dst.resolve() == src.resolve():
         raise DerivedFileError(f"{dst} is the recorded run itself; write the prediction to another file")
-    tmp = dst.with_name(dst.name + ".writing")
     try:
-        shutil.copyfile(src, tmp)
-        with h5py.File(tmp, "a") as f:
-            g = f["samples"]
-            if name in g:
-                raise DerivedFileError(f"{src} already has /samples/{name}")
-            n = g["t"].shape[0]
-            if len(values) != n:
-                raise DerivedFileError(f"/samples/{name} has {len(values)} values, the run has {n} samples")
-            ds = g.create_dataset(name, data=np.asarray(values), chunks=True, compression="gzip", shuffle=True)
-            ds.attrs["units"] = units
-            for key, value in (attrs or {}).items():
-                ds.attrs[key] = value
-            if g["t"].is_scale:
-                ds.dims[0].attach_scale(g["t"])
-            f.attrs["derived_from"] = src.name
-        os.replace(tmp, dst)
+        with replacing(dst) as tmp:
+            shutil.copyfile(src, tmp)
+            with h5py.File(tmp, "a") as f:
+                g = f["samples"]
+                if name in g:
+                    raise DerivedFileError(f"{src} already has /samples/{name}")
+                n = g["t"].shape[0]
+                if len(values) != n:
+                    raise DerivedFileError(f"/samples/{name} has {len(values)} values, the run has {n} samples")
+                ds = g.create_dataset(name, data=np.asarray(values), chunks=True, compression="gzip", shuffle=True)
+                ds.attrs["units"] = units
+                for key, value in (attrs or {}).items():
+                    ds.attrs[key] = value
+                if g["t"].is_scale:
+                    ds.dims[0].attach_scale(g["t"])
+                f.attrs["derived_from"] = src.name
     except OSError as exc:
         raise DerivedFileError(f"cannot write {dst}: {exc.strerror or exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return dst
