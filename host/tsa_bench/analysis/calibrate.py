@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 
 from tsa_bench.analysis.inputs import OUTPUTS, RunInputs
 from tsa_bench.analysis.modelspec import ParamSpec, get_value, set_values
-from tsa_bench.analysis.replay import replay
+from tsa_bench.analysis.replay import ReplayCache, replay
 
 
 @dataclass
@@ -34,11 +34,13 @@ class Problem:
     train: list[np.ndarray]        # training mask over idx
     sigma: dict[str, float]        # noise RMS per output
     outputs: tuple[str, ...] = OUTPUTS
+    cache: ReplayCache | None = None   # shared by the problems of one diagnosis
+    state: list[np.ndarray] | None = None   # per run: samples replayed for the plant state only
 
     def simulate(self, cfg: Mapping[str, Any]) -> list[dict[str, np.ndarray]]:
         out = []
-        for r, idx in zip(self.runs, self.idx):
-            length, res = replay(cfg, r, idx)
+        for k, (r, idx) in enumerate(zip(self.runs, self.idx)):
+            length, res = replay(cfg, r, idx, self.cache, self.state[k] if self.state else None)
             out.append({"length": length, "resistance": res})
         return out
 

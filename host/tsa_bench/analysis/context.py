@@ -24,7 +24,7 @@ from tsa_bench.analysis.holdout import Holdout
 from tsa_bench.analysis.inputs import RunInputs
 from tsa_bench.analysis.modelspec import enabled_effects, get_value
 from tsa_bench.analysis.noise import RELEVANT, Noise
-from tsa_bench.analysis.replay import subsample
+from tsa_bench.analysis.replay import ReplayCache, replay_samples
 from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
 from tsa_bench.analysis.signals import signal_bases
 from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
@@ -69,10 +69,9 @@ class Context:
         self.inputs, self.outputs, self.noise, self.hold, self.seed = inputs, outputs, noise, hold, seed
         self.sigma = {o: noise[o].rms for o in outputs}
         n_total = sum(len(r) for r in inputs)
-        idx = [subsample(r, len(r), max(300, N_CAL * len(r) // max(1, n_total))) for r in inputs]
-        self.problem = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
-        idx = [subsample(r, len(r), max(200, N_REFIT * len(r) // max(1, n_total))) for r in inputs]
-        self.small = Problem(inputs, idx, [~r.heldout[i] for r, i in zip(inputs, idx)], self.sigma, outputs)
+        self.cache = ReplayCache()
+        self.problem = self._problem(N_CAL, 300, n_total)
+        self.small = self._problem(N_REFIT, 200, n_total)
         self.units = all_units(inputs)
         self.rate = float(np.median([r.rate_hz for r in inputs]))
         self.moving = np.concatenate([r.moving for r in inputs])
@@ -81,8 +80,16 @@ class Context:
         self.source: set[str] = set(outputs)   # outputs structured in the judged model (what may be blamed)
         self.form_bars: dict[str, tuple[float, str]] = {}   # output -> (form spread of a named effect, its name)
 
+    def _problem(self, n_cal: int, at_least: int, n_total: int) -> Problem:
+        """A calibration problem on ~``n_cal`` samples shared out over the runs by length (at least
+        ``at_least`` each); on long runs the twist's turning points are replayed for the state only."""
+        picked = [replay_samples(r, len(r), max(at_least, n_cal * len(r) // max(1, n_total))) for r in self.inputs]
+        idx = [p[0] for p in picked]
+        return Problem(self.inputs, idx, [~r.heldout[i] for r, i in zip(self.inputs, idx)], self.sigma, self.outputs,
+                       self.cache, [p[1] for p in picked])
+
     def scores(self, cfg: Mapping[str, Any]) -> Scores:
-        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs)
+        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs, cache=self.cache)
 
     def compare(self, a: Scores, b: Scores) -> Comparison:
         return compare(a, b, FLOOR, N_BOOT, self.seed)

@@ -33,7 +33,7 @@ def induced(ctx: Context, fit0: Fit, structured: list[str], centre: dict, say: P
     for o in structured:
         say(f"calibrating the judged model on the {o} alone")
         p = ctx.small
-        alone = Problem(p.runs, p.idx, p.train, p.sigma, (o,))
+        alone = Problem(p.runs, p.idx, p.train, p.sigma, (o,), p.cache, p.state)
         fit = calibrate(alone, fit0.cfg, baseline_specs(fit0.cfg), start=dict(fit0.values), centre=centre,
                         max_nfev=REFIT_NFEV)
         sims = ctx.scores(fit.cfg).sims

@@ -7,13 +7,19 @@ off on the run's samples ``idx`` (sorted; default all), from a fresh plant at th
 run's start. On a subsample ``motor_moving`` is the OR over the skipped samples, so
 no motor stop is lost, and a few samples before each kept sample whose twist or load
 changed are simulated too (not returned), so state lagging one sample replays at the
-true spacing. :func:`subsample` picks a few thousand indices keeping every heater and
+true spacing. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
+config, the run and the subsample, so a config replayed again (the optimiser's start, the
+final fit, a score asked for twice) costs nothing; the arrays it returns are read-only.
+:func:`subsample` picks a few thousand indices keeping every heater and
 load change (and motor start/stop when affordable, else short windows after evenly
 spread stops), and for every kept still sample the stop that began its pause.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+from collections import OrderedDict
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,6 +31,8 @@ from tsa_bench.sim.history import simulate
 
 #: samples simulated before a kept sample whose twist or load changed (see :func:`_with_context`)
 CONTEXT = 3
+#: turning points per target sample beyond which they are replayed for the state only (:func:`replay_samples`)
+STATE_ONLY = 2
 
 
 def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
@@ -34,9 +42,72 @@ def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
     return cfg
 
 
-def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(length_mm, resistance_ohm) of the noise-free plant at samples ``idx``."""
+class ReplayCache:
+    """Least-recently-used replays, at most ``max_bytes`` of output arrays in all.
+
+    A replay is deterministic (noise off, fixed seed), so its result is a function of the
+    config, the run and the samples asked for: the key is the config's canonical JSON, the
+    run's identity (the cache lives no longer than the runs it was made for) and a digest of
+    ``idx``.
+    """
+
+    def __init__(self, max_bytes: int = 96 * 2 ** 20) -> None:
+        self.max_bytes = int(max_bytes)
+        self._items: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._bytes = 0
+        self.hits = 0
+        self.misses = 0
+
+    @staticmethod
+    def key(cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
+            ) -> tuple:
+        subs = tuple(None if a is None else (len(a), hashlib.blake2b(np.ascontiguousarray(a, np.int64).tobytes(),
+                                                                     digest_size=16).digest()) for a in (idx, state))
+        return json.dumps(cfg, sort_keys=True, default=str), id(inp), subs
+
+    def get(self, key: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+        out = self._items.get(key)
+        if out is None:
+            self.misses += 1
+            return None
+        self._items.move_to_end(key)
+        self.hits += 1
+        return out
+
+    def put(self, key: tuple, value: tuple[np.ndarray, np.ndarray]) -> None:
+        size = sum(a.nbytes for a in value)
+        if size > self.max_bytes:
+            return
+        for a in value:
+            a.setflags(write=False)
+        old = self._items.pop(key, None)
+        if old is not None:
+            self._bytes -= sum(a.nbytes for a in old)
+        self._items[key] = value
+        self._bytes += size
+        while self._bytes > self.max_bytes:
+            _, dropped = self._items.popitem(last=False)
+            self._bytes -= sum(a.nbytes for a in dropped)
+
+
+def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None = None,
+           cache: ReplayCache | None = None, state: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(length_mm, resistance_ohm) of the noise-free plant at samples ``idx`` (read-only
+    arrays when ``cache`` is given); samples ``state`` (with ``idx`` only) are simulated too,
+    without context, and not returned."""
     cfg = deterministic(plant_cfg)
+    if cache is None:
+        return _replay(cfg, inp, idx, state)
+    key = cache.key(cfg, inp, idx, state)
+    out = cache.get(key)
+    if out is None:
+        out = _replay(cfg, inp, idx, state)
+        cache.put(key, out)
+    return out
+
+
+def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
     if idx is None:
         out = simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving, seed=0)
         return out["length_mm"], out["resistance_ohm"]
@@ -45,6 +116,9 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
     if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
         warm = _warm(inp)
     run_idx, pos = _with_context(inp, idx, warm=warm)
+    if state is not None and len(state):
+        run_idx = np.union1d(run_idx, state)
+        pos = np.searchsorted(run_idx, idx)
     c = np.cumsum(inp.moving.astype(np.int64))
     prev = np.r_[-1, run_idx[:-1]]
     moving = (c[run_idx] - np.where(prev >= 0, c[np.maximum(prev, 0)], 0)) > 0
@@ -87,10 +161,21 @@ def _with_context(inp: RunInputs, idx: np.ndarray, n_context: int = CONTEXT, war
 def subsample(inp: RunInputs, stop: int, target: int) -> np.ndarray:
     """Sorted indices in [0, stop): every heater/load change and twist turning point, motor
     starts/stops if they fit, ~``target`` in all."""
+    return replay_samples(inp, stop, target, split_state=False)[0]
+
+
+def replay_samples(inp: RunInputs, stop: int, target: int, split_state: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(idx, state): :func:`subsample`'s indices, except that on a long run with more than
+    :data:`STATE_ONLY` x ``target`` twist turning points those are returned apart as
+    ``state``: replayed so the plant state runs through them exactly (play operators,
+    cumulative travel), but neither compared with the data nor given context or the stop of
+    their pause, so the samples compared stay ~``target`` however long the run is."""
+    none = np.zeros(0, int)
     if stop <= 0:
-        return np.zeros(0, int)
+        return none, none
     if stop <= target:
-        return np.arange(stop)
+        return np.arange(stop), none
     keep = [np.array([0, stop - 1])]
     for x in (inp.volts[:stop], inp.load_g[:stop]):
         ch = np.flatnonzero(np.diff(x) != 0)
@@ -104,9 +189,14 @@ def subsample(inp: RunInputs, stop: int, target: int) -> np.ndarray:
     # so play operators (hysteresis) and cumulative travel (wear creep) replay exactly
     d = np.diff(inp.turns[:stop])
     nz = np.flatnonzero(d != 0)
+    state = none
     if len(nz) > 1:
         sd = np.sign(d[nz])
-        keep.append(nz[1:][sd[1:] != sd[:-1]])
+        turning = nz[1:][sd[1:] != sd[:-1]]
+        if split_state and len(turning) > STATE_ONLY * target:
+            state = turning
+        else:
+            keep.append(turning)
     n_uniform = max(target - sum(len(k) for k in keep), target // 3)
     keep.append(np.linspace(0, stop - 1, n_uniform).astype(int))
     idx = np.unique(np.concatenate(keep))
@@ -119,7 +209,7 @@ def subsample(inp: RunInputs, stop: int, target: int) -> np.ndarray:
     s0 = st[idx][~mv[idx] & (st[idx] > 0)]
     if len(s0):
         idx = np.unique(np.concatenate([idx, s0, s0 - 1]))
-    return idx
+    return idx, np.setdiff1d(state, idx)
 
 
 def _post_stop_windows(inp: RunInputs, stop: int, budget: int, width: int = 12) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 
 from tsa_bench.analysis.holdout import units
 from tsa_bench.analysis.inputs import RunInputs
-from tsa_bench.analysis.replay import replay
+from tsa_bench.analysis.replay import ReplayCache, replay
 
 
 @dataclass
@@ -53,11 +53,11 @@ def all_units(runs: list[RunInputs], target: int = 24) -> list[tuple[int, np.nda
 
 def unit_scores(cfg: Mapping[str, Any], runs: list[RunInputs], unit_list: list[tuple[int, np.ndarray]],
                 sigma: Mapping[str, float], outputs: tuple[str, ...],
-                sims: list[dict[str, np.ndarray]] | None = None) -> Scores:
+                sims: list[dict[str, np.ndarray]] | None = None, cache: ReplayCache | None = None) -> Scores:
     if sims is None:
         sims = []
         for r in runs:
-            length, res = replay(cfg, r)
+            length, res = replay(cfg, r, cache=cache)
             sims.append({"length": length, "resistance": res})
     sse = np.zeros((len(unit_list), len(outputs)))
     cnt = np.zeros((len(unit_list), len(outputs)))
