@@ -8,7 +8,7 @@ at its library default, then times ``diagnose`` on that file and prints the seco
 (target < 60 s on a 2-core machine) and what was named.
 
     python scripts/bench/diagnose_speed.py [--effect NAME] [--protocol P.yaml] [--model BENCH.yaml]
-                                           [--seed N] [--keep DIR]
+                                           [--seed N] [--keep DIR] [--run RUN.h5]
 
 :func:`simulate_run` and :func:`with_hidden_effect` are reused (imported by path) by
 diagnose_power.py and tests/report_diagnose.
@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import copy
 import sys
+import resource
 import tempfile
 import time
 import urllib.parse
@@ -107,6 +108,8 @@ def main() -> None:
     ap.add_argument("--model", default=None, help="judged model (default: the engine's baseline)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--keep", type=Path, default=None, help="keep the run file and report in this directory")
+    ap.add_argument("--run", type=Path, default=None,
+                    help="diagnose this run file (made by an earlier --keep) instead of simulating one")
     ap.add_argument("--clean", action="store_true",
                     help="hide nothing: the judged model's own effects only (a named cause is a false alarm)")
     args = ap.parse_args()
@@ -125,7 +128,7 @@ def main() -> None:
         where = args.keep or Path(tmp)
         t0 = time.perf_counter()
         truth = plant_of(model) if args.clean else with_hidden_effect(model, effect)
-        path = simulate_run(truth, args.protocol, where / "hidden.h5", args.seed)
+        path = args.run or simulate_run(truth, args.protocol, where / "hidden.h5", args.seed)
         t_sim = time.perf_counter() - t0
         t0 = time.perf_counter()
         runs = [read_run(path)]
@@ -133,16 +136,17 @@ def main() -> None:
         t0, c0 = time.perf_counter(), time.process_time()
         result = diagnose(runs, model, None, seed=args.seed)
         t_diag, c_diag = time.perf_counter() - t0, time.process_time() - c0
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
         t0 = time.perf_counter()
         from tsa_bench.report.diagnose_report import write_json, write_report
         write_report(result, runs, where / "report")
         write_json(result, where / "report" / "diagnose.json")
         t_rep = time.perf_counter() - t0
     n = len(runs[0])
-    print(f"data        {args.protocol.name}: {n} samples, hidden effect {effect or 'none (clean)'} "
+    print(f"data        {args.run or args.protocol.name}: {n} samples, hidden effect {effect or 'none (clean)'} "
           f"(simulated in {t_sim:.1f} s, read in {t_read:.2f} s)")
     print(f"diagnose    {t_diag:.1f} s wall, {c_diag:.1f} s CPU (target <= 60 s; wall > CPU means a shared, busy "
-          f"machine) -> {result.summary[:150]} [{verdict(effect, result)}]")
+          f"machine), peak RSS {peak:.0f} MiB -> {result.summary[:150]} [{verdict(effect, result)}]")
     print(f"report      {t_rep:.1f} s (report.txt + figures + JSON)")
     print(f"total       {t_diag + t_read + t_rep:.1f} s for read + diagnose + report")
 

@@ -26,7 +26,7 @@ from tsa_bench.analysis.modelspec import enabled_effects, get_value
 from tsa_bench.analysis.noise import RELEVANT, Noise
 from tsa_bench.analysis.replay import ReplayCache, replay_samples
 from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
-from tsa_bench.analysis.signals import signal_bases
+from tsa_bench.analysis.signals import RunBases
 from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
 
 #: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
@@ -95,8 +95,7 @@ class Context:
         return compare(a, b, FLOOR, N_BOOT, self.seed)
 
     def residual_tests(self, sims: list[dict], r0: float) -> dict:
-        bases_runs = [signal_bases(r, r0) for r in self.inputs]
-        bases = {k: np.concatenate([b[k] for b in bases_runs]) for k in bases_runs[0]}
+        bases = RunBases(self.inputs, r0)
         out = {}
         for o in self.outputs:
             res = np.concatenate([np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)])
