@@ -11,10 +11,12 @@ runs, peak RSS of the child from ``wait4``), printed as one table:
 * ``run`` peak RSS at lifetime and 10x lifetime (``--long``; the 10x protocol is the
   lifetime protocol with 10x the cycles), against flat (the lifetime figure);
 * run file size in bytes per sample, against the sample columns' own compressed size;
-* ``diagnose`` at 1x (and 10x with ``--long``): wall s and peak RSS;
-* the Preisach fit (``tsa_bench.models.fitting.fit``, quasi-static mask included) at
-  1x / 4x / 10x lifetime (the lifetime run tiled in time): s and peak RSS, against
-  linear (the 1x figure times the factor);
+* ``diagnose`` at 1x (and 10x with ``--long``): wall s, CPU s and peak RSS (with
+  ``--baseline``, the other checkout's diagnose on the same file right after each);
+* every model ``tsa-bench fit`` offers (``tsa_bench.models.fitting.fit``, quasi-static
+  mask included; ``--fits`` picks some) at 1x / 4x / 10x lifetime (the lifetime run tiled
+  in time): whole-process s and peak RSS and the fit's own CPU s, against linear (the 1x
+  figure times the factor);
 * the SAMPLE frame: bytes on the wire per sample and samples/s the 250 kbaud line
   carries, against the ADS1115's 860 samples/s.
 
@@ -55,7 +57,7 @@ for i in range(n):
 """
 
 FIT_CHILD = """
-import sys, numpy as np
+import sys, time, numpy as np
 from tsa_bench.store import read_run
 from tsa_bench.store.reader import RunData
 from tsa_bench.models.fitting import fit
@@ -71,8 +73,14 @@ for name, col in run.samples.items():
     else:
         cols[name] = np.tile(col, k)
 tiled = RunData(run.path, run.attrs, cols, run.units, None, None)
-fit("preisach", [tiled], "turns", "length")
+io = ("turns", "length") if sys.argv[3] in ("preisach", "polynomial") else (None, None)
+c0 = time.process_time()
+fit(sys.argv[3], [tiled], *io)
+print(time.process_time() - c0)
 """
+#: models `tsa-bench fit` offers (cli/models.py); the strain-resistance and self-sensing models
+#: are identified on whole hold curves, which a lifetime run has only at its 1 s pauses
+FIT_MODELS = ("preisach", "polynomial", "strain-resistance", "self-sensing")
 
 
 def env(root: Path = ROOT) -> dict[str, str]:
@@ -82,21 +90,31 @@ def env(root: Path = ROOT) -> dict[str, str]:
 
 
 LAST_CPU: list[float] = [0.0]
+LAST_OUT: list[float | None] = [None]
 
 
-def rss_of(argv: list[str], root: Path = ROOT) -> tuple[float, float]:
+def rss_of(argv: list[str], root: Path = ROOT, timeout: float | None = None) -> tuple[float, float]:
     """(wall s, peak RSS MiB) measured in a fresh wrapper process, so ru_maxrss is this
-    child's alone; its CPU seconds (user + system) go to ``LAST_CPU[0]``."""
-    wrapper = ("import resource, subprocess, sys, time; t=time.perf_counter(); "
-               "r=subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL); "
+    child's alone; its CPU seconds (user + system) go to ``LAST_CPU[0]`` and the last line
+    the child printed to ``LAST_OUT[0]`` (a float, or None)."""
+    wrapper = ("import resource, subprocess, sys, time; t=time.perf_counter(); lim=float(sys.argv[1]) or None\n"
+               "try: r=subprocess.run(sys.argv[2:], stdout=subprocess.PIPE, text=True, timeout=lim)\n"
+               "except subprocess.TimeoutExpired: sys.exit(3)\n"
                "w=time.perf_counter()-t; u=resource.getrusage(resource.RUSAGE_CHILDREN); "
-               "print(w, u.ru_maxrss/1024.0, u.ru_utime+u.ru_stime); sys.exit(r.returncode)")
-    proc = subprocess.run([sys.executable, "-c", wrapper, *argv], capture_output=True, env=env(root), text=True,
-                          cwd=root)
+               "last=(r.stdout.strip().splitlines() or ['nan'])[-1].split()[-1]; "
+               "print(w, u.ru_maxrss/1024.0, u.ru_utime+u.ru_stime, last); sys.exit(r.returncode)")
+    proc = subprocess.run([sys.executable, "-c", wrapper, str(timeout or 0), *argv], capture_output=True,
+                          env=env(root), text=True, cwd=root)
+    if proc.returncode == 3 and timeout:
+        raise subprocess.TimeoutExpired(argv, timeout)
     if proc.returncode != 0:
         sys.exit(f"speed_limits: {' '.join(argv[:6])} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    wall, rss, cpu = proc.stdout.split()[-3:]
+    wall, rss, cpu, last = proc.stdout.split()[-4:]
     LAST_CPU[0] = float(cpu)
+    try:
+        LAST_OUT[0] = float(last)
+    except ValueError:
+        LAST_OUT[0] = None
     return float(wall), float(rss)
 
 
@@ -156,6 +174,10 @@ def main() -> None:
     ap.add_argument("--long", action="store_true", help="also the 10x lifetime figures (run RSS, diagnose): minutes")
     ap.add_argument("--keep", type=Path, default=None, help="keep the run files here")
     ap.add_argument("--skip-diagnose", action="store_true")
+    ap.add_argument("--fits", default=",".join(FIT_MODELS),
+                    help=f"models fitted at 1x / 4x / 10x, comma-separated (default: {','.join(FIT_MODELS)}; "
+                         "'none' skips them)")
+    ap.add_argument("--timeout", type=float, default=900.0, help="seconds before one fit is given up (printed)")
     ap.add_argument("--baseline", type=Path, default=None,
                     help="another checkout (e.g. `git worktree add /tmp/base main`): its `run lifetime.yaml` "
                          "is measured too, alternating with this one, for a side-by-side speed-up")
@@ -216,21 +238,32 @@ def main() -> None:
     row("run file size, B/sample", f"{bps:.1f}", f"sample columns alone (shuffle+gzip) {col_bps:.1f}")
 
     if not args.skip_diagnose:
-        dw, dr = repeated([*CLI, "diagnose", "-q", "--out", str(tmp / "diag1"), str(tmp / "lifetime-0.h5")], 1)
-        text = f"1x {dw[0]:.1f} s, {dr[0]:.0f} MiB"
-        if args.long:
-            dw10, dr10 = rss_of([*CLI, "diagnose", "-q", "--out", str(tmp / "diag10"), str(tmp / "lifetime-x10.h5")])
-            text += f"; 10x {dw10:.1f} s, {dr10:.0f} MiB"
-        row("`diagnose` (wall, peak RSS)", text, "10x: <= 30 s, <= 500 MiB")
+        files = [("1x", tmp / "lifetime-0.h5")] + ([("10x", tmp / "lifetime-x10.h5")] if args.long else [])
+        for label, path in files:
+            argv = ["diagnose", "-q", "--out", str(tmp / f"diag-{label}"), str(path)]
+            dw, dr = rss_of([*CLI, *argv])
+            text = f"{dw:.1f} s, CPU {LAST_CPU[0]:.1f} s, {dr:.0f} MiB"
+            if args.baseline is not None:
+                bw, br = rss_of([*CLI, *argv[:3], str(tmp / f"diag-base-{label}"), str(path)], args.baseline)
+                text += f" | baseline {bw:.1f} s, CPU {LAST_CPU[0]:.1f} s, {br:.0f} MiB"
+            row(f"`diagnose` {label} lifetime (wall, CPU, peak RSS)", text,
+                "10x: <= 30 s, <= 500 MiB" if label == "10x" else "-")
 
-    fits = []
-    for k in (1, 4, 10):
-        w, r = rss_of([sys.executable, "-c", FIT_CHILD, str(tmp / "lifetime-0.h5"), str(k)])
-        fits.append((k, w, r, LAST_CPU[0]))
-    base = fits[0][1]
-    row("`fit preisach` (read, tile, mask, fit) at 1x / 4x / 10x lifetime: wall s, peak MiB, CPU s",
-        " / ".join(f"{w:.1f} s {r:.0f} MiB (CPU {c:.1f} s)" for _, w, r, c in fits),
-        "linear: " + " / ".join(f"{base * k:.1f} s" for k, *_ in fits))
+    for model in [m for m in args.fits.split(",") if m and m != "none"]:
+        fits = []
+        for k in (1, 4, 10):
+            try:
+                w, r = rss_of([sys.executable, "-c", FIT_CHILD, str(tmp / "lifetime-0.h5"), str(k), model],
+                              timeout=args.timeout)
+            except subprocess.TimeoutExpired:
+                fits.append((k, None, None, None))
+                break
+            fits.append((k, w, r, LAST_OUT[0]))
+        base = fits[0][3]
+        row(f"`fit {model}` (read, tile, mask, fit) at 1x / 4x / 10x lifetime: wall s, peak MiB, fit CPU s",
+            " / ".join(f"{k}x {w:.1f} s {r:.0f} MiB (fit {c:.2f} s)" if w is not None else
+                       f"{k}x over {args.timeout:.0f} s" for k, w, r, c in fits),
+            "linear: " + (" / ".join(f"{base * k:.2f} s" for k, *_ in fits) if base is not None else "-"))
 
     payload, frame, sps = frame_figures()
     row("SAMPLE frame", f"{frame} B for a {payload} B payload ({(frame - payload) / payload * 100:.1f} % overhead on the payload): "

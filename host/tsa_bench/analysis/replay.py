@@ -51,7 +51,7 @@ class ReplayCache:
     ``idx``.
     """
 
-    def __init__(self, max_bytes: int = 96 * 2 ** 20) -> None:
+    def __init__(self, max_bytes: int = 48 * 2 ** 20) -> None:
         self.max_bytes = int(max_bytes)
         self._items: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
         self._bytes = 0

@@ -68,30 +68,34 @@ def fit_decay(curves: list[tuple[np.ndarray, np.ndarray]], eps_s: float = EPS_S)
     """Fit shared ``b1, b2 <= 0`` and per-curve ``y_s`` to curves ``(dt_s, y)``; NaNs skipped.
 
     Returns ``(b1, b2, y_s)`` with ``y_s`` one value per curve (NaN for a curve with no data).
+
+    The per-curve levels are free, so for given ``b1, b2`` each is its curve's mean of
+    ``y - b1 lg^2 - b2 lg``; substituting them leaves a two-parameter bounded least squares
+    on the curve-demeaned columns (the same optimum as the full design matrix with one
+    column per curve, in time and memory linear in the samples).
     """
     if not curves:
         raise ValueError("no transient (hold) curves to fit")
-    rows, cols, yy = [], [], []
     m = len(curves)
+    lgs, ys_in, which = [], [], []
     for i, (dt, y) in enumerate(curves):
         dt = np.asarray(dt, dtype=float)
         y = np.asarray(y, dtype=float)
         ok = np.isfinite(y)
-        lg = np.log(dt[ok] + eps_s)
-        block = np.zeros((ok.sum(), m + 2))
-        block[:, 0] = lg * lg
-        block[:, 1] = lg
-        block[:, 2 + i] = 1.0
-        rows.append(block)
-        yy.append(y[ok])
-    a = np.vstack(rows)
-    b = np.concatenate(yy)
+        lgs.append(np.log(dt[ok] + eps_s))
+        ys_in.append(y[ok])
+        which.append(np.full(int(ok.sum()), i))
+    lg = np.concatenate(lgs)
+    b = np.concatenate(ys_in)
+    g = np.concatenate(which)
     if len(b) < m + 2:
         raise ValueError(f"too few samples ({len(b)}) on {m} hold curves to fit the transient decay")
-    lo = np.r_[-np.inf, -np.inf, np.full(m, -np.inf)]
-    hi = np.r_[0.0, 0.0, np.full(m, np.inf)]
-    sol = lsq_linear(a, b, bounds=(lo, hi), method="bvls")
-    ys = sol.x[2:].copy()
-    counts = np.array([np.isfinite(np.asarray(y, dtype=float)).sum() for _, y in curves])
+    counts = np.bincount(g, minlength=m).astype(float)
+    cols = np.column_stack([lg * lg, lg, b])
+    means = np.column_stack([np.bincount(g, weights=c, minlength=m) for c in cols.T]) / np.maximum(counts, 1.0)[:, None]
+    centred = cols - means[g]
+    sol = lsq_linear(centred[:, :2], centred[:, 2], bounds=([-np.inf, -np.inf], [0.0, 0.0]), method="bvls")
+    b1, b2 = float(sol.x[0]), float(sol.x[1])
+    ys = means[:, 2] - b1 * means[:, 0] - b2 * means[:, 1]
     ys[counts == 0] = np.nan
-    return float(sol.x[0]), float(sol.x[1]), ys
+    return b1, b2, ys
