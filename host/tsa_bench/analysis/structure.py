@@ -83,7 +83,7 @@ def _signal_fits(res: np.ndarray, bases: dict[str, np.ndarray]) -> list[dict]:
     out = []
     for name, b in bases.items():
         x = b[ok]
-        x = x - x.mean(axis=0)
+        x -= x.mean(axis=0)
         keep = np.std(x, axis=0) > 1e-12
         if not keep.any() or tss <= 0:
             continue
