@@ -39,6 +39,10 @@ class Scores:
         """The same scores on the units ``keep`` (a boolean mask) only."""
         return Scores(self.sse[keep], self.count[keep], self.outputs, self.sims)
 
+    def without_sims(self) -> "Scores":
+        """The same scores without the replays (full-resolution arrays a comparison no longer needs)."""
+        return Scores(self.sse, self.count, self.outputs, [])
+
     def mse(self) -> dict[str, float]:
         return {o: float(self.sse[:, j].sum() / self.count[:, j].sum()) if self.count[:, j].sum() else float("nan")
                 for j, o in enumerate(self.outputs)}
