@@ -113,3 +113,15 @@ def test_bases_one_at_a_time_equal_the_whole_set():
     assert list(lazy) == list(whole[0]) and len(lazy) == len(whole[0])
     for name in lazy:
         assert np.array_equal(lazy[name], np.concatenate([w[name] for w in whole]))
+
+
+def test_chunked_replay_equals_one_pass(monkeypatch):
+    import tsa_bench.analysis.replay as rp
+    from tsa_bench.sim.history import simulate
+    inp = _inputs(8)
+    cfg = switch(switch(load_model(None), "resistance_creep", True), "twist_hysteresis", True)
+    one = simulate(rp.deterministic(cfg), inp.t, inp.turns, inp.volts, inp.load_g, inp.moving, seed=0)
+    monkeypatch.setattr(rp, "CHUNK", 397)
+    assert len(inp) > 3 * 397
+    length, res = replay(cfg, inp)
+    assert np.array_equal(length, one["length_mm"]) and np.array_equal(res, one["resistance_ohm"])

@@ -28,9 +28,13 @@ import numpy as np
 from tsa_bench.analysis.inputs import RunInputs
 from tsa_bench.analysis.modelspec import set_values
 from tsa_bench.sim.history import simulate
+from tsa_bench.sim.plant import plant_from_config
 
 #: samples simulated before a kept sample whose twist or load changed (see :func:`_with_context`)
 CONTEXT = 3
+#: samples per call of the plant's history loop: one plant runs through the chunks (the same
+#: replay), and the loop's per-sample Python lists stay small on a long run
+CHUNK = 1 << 16
 #: turning points per target sample beyond which they are replayed for the state only (:func:`replay_samples`)
 STATE_ONLY = 2
 
@@ -109,8 +113,7 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
 def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray]:
     if idx is None:
-        out = simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving, seed=0)
-        return out["length_mm"], out["resistance_ohm"]
+        return _simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving)
     idx = np.asarray(idx)
     warm = None
     if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
@@ -122,8 +125,24 @@ def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray
     c = np.cumsum(inp.moving.astype(np.int64))
     prev = np.r_[-1, run_idx[:-1]]
     moving = (c[run_idx] - np.where(prev >= 0, c[np.maximum(prev, 0)], 0)) > 0
-    out = simulate(cfg, inp.t[run_idx], inp.turns[run_idx], inp.volts[run_idx], inp.load_g[run_idx], moving, seed=0)
-    return out["length_mm"][pos], out["resistance_ohm"][pos]
+    length, res = _simulate(cfg, inp.t[run_idx], inp.turns[run_idx], inp.volts[run_idx], inp.load_g[run_idx], moving)
+    return length[pos], res[pos]
+
+
+def _simulate(cfg: dict, t: np.ndarray, turns: np.ndarray, volts: np.ndarray, load_g: np.ndarray,
+              moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(length_mm, resistance_ohm) of a fresh plant (seed 0) sampled on the history, :data:`CHUNK` samples a call."""
+    n = len(t)
+    if n <= CHUNK:
+        out = simulate(cfg, t, turns, volts, load_g, moving, seed=0)
+        return out["length_mm"], out["resistance_ohm"]
+    plant = plant_from_config(cfg, seed=0)
+    length, res = np.empty(n), np.empty(n)
+    for a in range(0, n, CHUNK):
+        b = min(n, a + CHUNK)
+        out = simulate(plant, t[a:b], turns[a:b], volts[a:b], load_g[a:b], moving[a:b])
+        length[a:b], res[a:b] = out["length_mm"], out["resistance_ohm"]
+    return length, res
 
 
 def _warm(inp: RunInputs, after_s: float = 300.0) -> np.ndarray:
