@@ -19,7 +19,8 @@ if TYPE_CHECKING:
     from rich.table import Table
 
 # The names of tsa_bench.models.saved.MODEL_NAMES, here so that --help does not import the models.
-MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing")
+MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing", "twist-heat-additive",
+               "twist-heat-coupled")
 
 
 def _fail(msg: str, code: int = EXIT_BAD_INPUT) -> NoReturn:
