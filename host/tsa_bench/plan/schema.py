@@ -76,7 +76,7 @@ STEPS: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
                              "items": {"type": ["number", "string", "boolean"]}},
                   "steps": {"$ref": "#/$defs/steps"}}),
     "twist_heat": (
-        "twist and heat at once: before each sub-move the heater is set to its voltage (docs/control.md)",
+        "twist and heat at once: before each sub-move the heater is set to its voltage (docs/twist-heat.md)",
         ("targets_turns", "voltages_V"),
         {"targets_turns": {"type": "array", "minItems": 1, "items": _num("absolute sub-move target, turns")},
          "voltages_V": {"type": "array", "minItems": 1, "items": _num("heater voltage during that sub-move, V",
