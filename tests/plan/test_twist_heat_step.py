@@ -65,3 +65,48 @@ def test_the_schema_describes_the_step():
     good = protocol("twist_heat: {targets_turns: [5, 10], voltages_V: [1, 2], hold_s: 1, end_voltage_V: 0}")
     assert not list(validator.iter_errors(parse_yaml(good, "x").data()))
     assert list(validator.iter_errors(parse_yaml(protocol("twist_heat: {targets_turns: [5]}"), "x").data()))
+
+
+#: A short twist_heat protocol for the backends (the simulated device here, the firmware in simavr
+#: in tests/simavr/test_twist_heat_in_simavr.py).
+BACKEND_PROTOCOL = """name: twist-heat-backend
+load_g: 250
+sampling_period_s: 0.1
+defaults: {rate_turns_per_s: 3.33, accel_turns_per_s2: 50}
+steps:
+  - hold: {duration_s: 1}
+  - twist_heat: {targets_turns: [5, 10], voltages_V: [2, 4], hold_s: 2, end_voltage_V: 0}
+  - move_to: {turns: 0}
+  - heater: {voltage_V: 0}
+"""
+
+
+def check_heater_during_sub_moves(run) -> None:
+    """Every sample of each sub-move carries that sub-move's heater level (the applied voltage,
+    within the PWM's duty rounding); the end level is 0 V."""
+    import numpy as np
+
+    seg = np.asarray(run.samples["segment"])
+    volts = np.asarray(run.samples["heater_voltage"], float)
+    rows = {int(r["index"]): (r["kind"].decode() if isinstance(r["kind"], bytes) else r["kind"],
+                              json.loads(r["params"])) for r in run.segments}
+    levels = [p["voltage_V"] for kind, p in rows.values() if kind == "heater" and p.get("step") == "twist_heat"]
+    assert levels == [2.0, 4.0, 0.0]
+    sub_moves = [i for i, (kind, p) in rows.items() if kind == "move"][:2]
+    for i, level in zip(sub_moves, (2.0, 4.0)):
+        during = volts[seg == i]
+        assert len(during) >= 5 and np.all(np.abs(during - level) < 0.05), (i, during)
+    assert np.all(volts[seg == max(rows)] == 0) and run.exit_status == "success"
+
+
+def test_the_simulated_device_applies_each_level_during_its_sub_move(tmp_path):
+    from click.testing import CliRunner
+
+    from tsa_bench.cli import main
+    from tsa_bench.store.reader import read_run
+
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(BACKEND_PROTOCOL)
+    res = CliRunner().invoke(main, ["run", str(protocol), "--output", str(tmp_path / "run.h5")])
+    assert res.exit_code == 0, res.output
+    check_heater_during_sub_moves(read_run(tmp_path / "run.h5"))
