@@ -113,6 +113,8 @@ class FrameSequencer:
     def push(self, frames: list[Frame]) -> list[Frame]:
         """Frames now in order (possibly none); late ones go to :attr:`late`."""
         out: list[Frame] = []
+        if frames and not self._held and self._expected is not None:
+            frames = self._release_in_order(frames, out)
         for frame in frames:
             seq = frame.seq
             if self._expected is None:
@@ -145,6 +147,34 @@ class FrameSequencer:
         while self._held and now - min(t for _, t in self._held.values()) >= self.hold_s:
             self._give_up_gap(out)
         return out
+
+    def _release_in_order(self, frames: list[Frame], out: list[Frame]) -> list[Frame]:
+        """The common case in bulk: release the leading frames that follow on, one number
+        after another (no gap, no BOOT); return the rest for the general path."""
+        expected = self._expected
+        n = 0
+        for frame in frames:
+            if frame.seq != expected or type(frame.message) is msg.Boot:
+                break
+            expected = (expected + 1) % SEQ_MOD
+            n += 1
+        if n == 0:
+            return frames
+        run = frames[:n] if n < len(frames) else frames
+        out.extend(run)
+        self.stats.released += n
+        self._expected = expected
+        seqs = [f.seq for f in run]
+        self._released.update(seqs)
+        order = self._released_order
+        order.extend(seqs)
+        extra = len(order) - REMEMBER
+        if extra > 0:
+            discard = self._released.discard
+            popleft = order.popleft
+            for _ in range(extra):
+                discard(popleft())
+        return frames[n:] if n < len(frames) else []
 
     def take_late(self) -> list[Frame]:
         """Late frames seen since the last call."""
