@@ -232,14 +232,23 @@ class SimDevice:
         limit = self._produced + max_output_bytes
         urgent_before = self._urgent_sent
         release_s = self.limits.fault_release_s
+        inf = math.inf
         while self._urgent_sent == urgent_before and self._produced < limit:
             t_seg = ex.end_s
             t_smp = self._next_sample_s
-            armed = (self._period_us > 0 or self.active) and not self.fault   # watchdog_armed, cheapest first
-            t_wd = self._last_host_s + self._watchdog_s if armed else math.inf
-            releasing = self.fault and not self.motor_released and release_s > 0 and not ex.stopping
-            t_rel = self._fault_since_s + release_s if releasing else math.inf
-            t = min(t_seg, t_smp, t_wd, t_rel)
+            fault = self.fault
+            if fault:
+                t_wd = inf
+                releasing = not self.motor_released and release_s > 0 and not ex.stopping
+                t_rel = self._fault_since_s + release_s if releasing else inf
+            else:   # the watchdog runs while watchdog_armed (tested cheapest first)
+                t_wd = self._last_host_s + self._watchdog_s if self._period_us > 0 or self.active else inf
+                t_rel = inf
+            t = t_seg if t_seg < t_smp else t_smp
+            if t_wd < t:
+                t = t_wd
+            if t_rel < t:
+                t = t_rel
             if t > end or t == math.inf:
                 if end != math.inf:
                     self.now_s = end
