@@ -24,7 +24,6 @@ frames releases what has waited long enough.
 from __future__ import annotations
 
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -67,7 +66,9 @@ class FrameSequencer:
         self._expected: int | None = None
         self._held: dict[int, tuple[Frame, float]] = {}
         self._released: set[int] = set()
-        self._released_order: deque[int] = deque()
+        # numbers in release order; the last REMEMBER from _order_head on are remembered
+        self._released_order: list[int] = []
+        self._order_head = 0
 
     def _ahead(self, seq: int) -> int:
         assert self._expected is not None
@@ -89,8 +90,19 @@ class FrameSequencer:
     def _remember(self, seq: int) -> None:
         self._released.add(seq)
         self._released_order.append(seq)
-        if len(self._released_order) > REMEMBER:
-            self._released.discard(self._released_order.popleft())
+        self._forget_oldest()
+
+    def _forget_oldest(self) -> None:
+        """Forget the numbers beyond the last REMEMBER released (bulk, then compact now and then)."""
+        order = self._released_order
+        extra = len(order) - self._order_head - REMEMBER
+        if extra > 0:
+            head = self._order_head
+            self._released.difference_update(order[head:head + extra])
+            self._order_head = head = head + extra
+            if head >= 4 * REMEMBER:
+                del order[:head]
+                self._order_head = 0
 
     def _give_up_gap(self, out: list[Frame]) -> None:
         """Declare lost the numbers before the lowest held frame, release from there."""
@@ -107,6 +119,7 @@ class FrameSequencer:
         self._held.clear()
         self._released.clear()
         self._released_order.clear()
+        self._order_head = 0
         self.stats.restarts += 1
         self._emit(frame, out)
 
@@ -166,14 +179,8 @@ class FrameSequencer:
         self._expected = expected
         seqs = [f.seq for f in run]
         self._released.update(seqs)
-        order = self._released_order
-        order.extend(seqs)
-        extra = len(order) - REMEMBER
-        if extra > 0:
-            discard = self._released.discard
-            popleft = order.popleft
-            for _ in range(extra):
-                discard(popleft())
+        self._released_order.extend(seqs)
+        self._forget_oldest()
         return frames[n:] if n < len(frames) else []
 
     def take_late(self) -> list[Frame]:
