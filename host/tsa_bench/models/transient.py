@@ -68,30 +68,34 @@ def fit_decay(curves: list[tuple[np.ndarray, np.ndarray]], eps_s: float = EPS_S)
     """Fit shared ``b1, b2 <= 0`` and per-curve ``y_s`` to curves ``(dt_s, y)``; NaNs skipped.
 
     Returns ``(b1, b2, y_s)`` with ``y_s`` one value per curve (NaN for a curve with no data).
+    The per-curve levels are unbounded, so they are taken out first (each curve's mean
+    removed from its data and regressors: the same least-squares solution as the full
+    problem with one column per curve), leaving a two-column bounded problem: time and
+    memory linear in samples, whatever the number of curves.
     """
     if not curves:
         raise ValueError("no transient (hold) curves to fit")
-    rows, cols, yy = [], [], []
     m = len(curves)
+    lgs, ys, ids = [], [], []
     for i, (dt, y) in enumerate(curves):
         dt = np.asarray(dt, dtype=float)
         y = np.asarray(y, dtype=float)
         ok = np.isfinite(y)
-        lg = np.log(dt[ok] + eps_s)
-        block = np.zeros((ok.sum(), m + 2))
-        block[:, 0] = lg * lg
-        block[:, 1] = lg
-        block[:, 2 + i] = 1.0
-        rows.append(block)
-        yy.append(y[ok])
-    a = np.vstack(rows)
-    b = np.concatenate(yy)
+        lgs.append(np.log(dt[ok] + eps_s))
+        ys.append(y[ok])
+        ids.append(np.full(int(ok.sum()), i))
+    lg, b, gid = np.concatenate(lgs), np.concatenate(ys), np.concatenate(ids)
     if len(b) < m + 2:
         raise ValueError(f"too few samples ({len(b)}) on {m} hold curves to fit the transient decay")
-    lo = np.r_[-np.inf, -np.inf, np.full(m, -np.inf)]
-    hi = np.r_[0.0, 0.0, np.full(m, np.inf)]
-    sol = lsq_linear(a, b, bounds=(lo, hi), method="bvls")
-    ys = sol.x[2:].copy()
-    counts = np.array([np.isfinite(np.asarray(y, dtype=float)).sum() for _, y in curves])
-    ys[counts == 0] = np.nan
-    return float(sol.x[0]), float(sol.x[1]), ys
+    counts = np.bincount(gid, minlength=m)
+    safe = np.maximum(counts, 1)
+
+    def centred(v: np.ndarray) -> np.ndarray:
+        return v - (np.bincount(gid, weights=v, minlength=m) / safe)[gid]
+
+    a = np.column_stack([centred(lg * lg), centred(lg)])
+    sol = lsq_linear(a, centred(b), bounds=([-np.inf, -np.inf], [0.0, 0.0]), method="bvls")
+    b1, b2 = float(sol.x[0]), float(sol.x[1])
+    level = np.bincount(gid, weights=b - b1 * lg * lg - b2 * lg, minlength=m) / safe
+    level[counts == 0] = np.nan
+    return b1, b2, level
