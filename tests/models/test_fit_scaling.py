@@ -72,12 +72,16 @@ def test_preisach_fit_equals_the_dense_least_squares():
     assert np.sqrt(np.mean((ours - y[ok]) ** 2)) < 0.011   # the noise, not the model, is left
 
 
-def test_the_transient_decay_fit_equals_the_full_problem_with_one_level_per_curve():
+@pytest.mark.parametrize("dense_max", [10**9, 0])   # the direct form, and levels taken out first
+def test_the_transient_decay_fit_equals_the_full_problem_with_one_level_per_curve(monkeypatch, dense_max):
     """Curve levels taken out first give the same b1, b2 and levels as the dense formulation
     (one column per curve), which grows as samples x curves and stalled a day-long run."""
     from scipy.optimize import lsq_linear
 
+    from tsa_bench.models import transient
     from tsa_bench.models.transient import EPS_S, fit_decay
+
+    monkeypatch.setattr(transient, "DENSE_MAX_ENTRIES", dense_max)
 
     rng = np.random.default_rng(5)
     curves = []
