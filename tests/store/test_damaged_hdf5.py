@@ -80,3 +80,14 @@ def test_commands_exit_2_naming_the_damage(files, command, short_timeout):
     assert res.exit_code == 2, res.output
     assert "damaged HDF5 file" in res.output and "Traceback" not in res.output
     assert bad.read_bytes() == before
+
+
+def test_with_other_threads_running_the_probe_uses_a_fresh_interpreter(files, short_timeout, monkeypatch):
+    """A fork while another thread holds h5py's lock would leave the child waiting for ever."""
+    import threading
+
+    monkeypatch.setattr(threading, "active_count", lambda: 3)
+    monkeypatch.setattr(probe.os, "fork", lambda: pytest.fail("forked with other threads running"))
+    good, bad = files
+    assert probe.check_hdf5_terminates(good) is None
+    assert probe.check_hdf5_terminates(bad).startswith("damaged HDF5 file")
