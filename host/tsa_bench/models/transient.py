@@ -64,38 +64,60 @@ def decay_series(t_s: np.ndarray, motor_moving: np.ndarray, b1: float, b2: float
     return out
 
 
+#: Above this many matrix entries (samples x (curves + 2)) the curve levels are taken out
+#: first; below, the one-column-per-curve problem is solved as it stands.
+DENSE_MAX_ENTRIES = 4_000_000
+
+
 def fit_decay(curves: list[tuple[np.ndarray, np.ndarray]], eps_s: float = EPS_S) -> tuple[float, float, np.ndarray]:
     """Fit shared ``b1, b2 <= 0`` and per-curve ``y_s`` to curves ``(dt_s, y)``; NaNs skipped.
 
     Returns ``(b1, b2, y_s)`` with ``y_s`` one value per curve (NaN for a curve with no data).
-
-    The per-curve levels are free, so for given ``b1, b2`` each is its curve's mean of
-    ``y - b1 lg^2 - b2 lg``; substituting them leaves a two-parameter bounded least squares
-    on the curve-demeaned columns (the same optimum as the full design matrix with one
-    column per curve, in time and memory linear in the samples).
+    A long run (thousands of holds) would make the one-column-per-curve matrix grow as
+    samples x curves; there the unbounded levels are taken out first (same solution, time
+    and memory linear in samples). Small problems keep the direct form, whose results the
+    calibrated presets and thesis comparisons were made with (the downstream nonconvex
+    fits notice differences of 1e-12 in the levels).
     """
     if not curves:
         raise ValueError("no transient (hold) curves to fit")
     m = len(curves)
-    lgs, ys_in, which = [], [], []
+    lgs, ys, ids = [], [], []
     for i, (dt, y) in enumerate(curves):
         dt = np.asarray(dt, dtype=float)
         y = np.asarray(y, dtype=float)
         ok = np.isfinite(y)
         lgs.append(np.log(dt[ok] + eps_s))
-        ys_in.append(y[ok])
-        which.append(np.full(int(ok.sum()), i))
-    lg = np.concatenate(lgs)
-    b = np.concatenate(ys_in)
-    g = np.concatenate(which)
+        ys.append(y[ok])
+        ids.append(np.full(int(ok.sum()), i))
+    lg, b, gid = np.concatenate(lgs), np.concatenate(ys), np.concatenate(ids)
     if len(b) < m + 2:
         raise ValueError(f"too few samples ({len(b)}) on {m} hold curves to fit the transient decay")
-    counts = np.bincount(g, minlength=m).astype(float)
-    cols = np.column_stack([lg * lg, lg, b])
-    means = np.column_stack([np.bincount(g, weights=c, minlength=m) for c in cols.T]) / np.maximum(counts, 1.0)[:, None]
-    centred = cols - means[g]
-    sol = lsq_linear(centred[:, :2], centred[:, 2], bounds=([-np.inf, -np.inf], [0.0, 0.0]), method="bvls")
+    solve = _decay_dense if len(b) * (m + 2) <= DENSE_MAX_ENTRIES else _decay_centred
+    b1, b2, level = solve(lg, b, gid, m)
+    level[np.bincount(gid, minlength=m) == 0] = np.nan
+    return b1, b2, level
+
+
+def _decay_dense(lg: np.ndarray, y: np.ndarray, gid: np.ndarray, m: int) -> tuple[float, float, np.ndarray]:
+    """Columns ``lg^2, lg`` and one level column per curve; bounded ``b1, b2 <= 0``."""
+    a = np.zeros((len(y), m + 2))
+    a[:, 0], a[:, 1] = lg * lg, lg
+    a[np.arange(len(y)), 2 + gid] = 1.0
+    hi = np.r_[0.0, 0.0, np.full(m, np.inf)]
+    x = lsq_linear(a, y, bounds=(np.full(m + 2, -np.inf), hi), method="bvls").x
+    return float(x[0]), float(x[1]), x[2:].copy()
+
+
+def _decay_centred(lg: np.ndarray, y: np.ndarray, gid: np.ndarray, m: int) -> tuple[float, float, np.ndarray]:
+    """The same problem with each curve's mean removed from data and regressors (the
+    levels are unbounded, so this is exact), then the levels from the means."""
+    safe = np.maximum(np.bincount(gid, minlength=m), 1)
+
+    def centred(v: np.ndarray) -> np.ndarray:
+        return v - (np.bincount(gid, weights=v, minlength=m) / safe)[gid]
+
+    a = np.column_stack([centred(lg * lg), centred(lg)])
+    sol = lsq_linear(a, centred(y), bounds=([-np.inf, -np.inf], [0.0, 0.0]), method="bvls")
     b1, b2 = float(sol.x[0]), float(sol.x[1])
-    ys = means[:, 2] - b1 * means[:, 0] - b2 * means[:, 1]
-    ys[counts == 0] = np.nan
-    return b1, b2, ys
+    return b1, b2, np.bincount(gid, weights=y - b1 * lg * lg - b2 * lg, minlength=m) / safe
