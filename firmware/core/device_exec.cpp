@@ -201,7 +201,7 @@ void Device::release_motor(uint64_t now) {
     motor_released_ = true;
     position_known_ = false;
     board_.position_record(board_.step_position(), false);
-    period_us_ = 0;
+    set_sampling(0, now);
     abort_resistance();
     sense_off();
     send_event(now, proto::event_kind::MOTOR_RELEASED, fault_);

@@ -80,6 +80,7 @@ int main(int argc, char** argv) {
     const uint64_t wd_us = static_cast<uint64_t>(cfg::WATCHDOG_MS) * 1000ULL;
     g_board.reason = proto::boot_reason::EXTERNAL_RESET;
     g_board.tx_ring_size = 4096;
+    g_board.resistance_latency_us = 19125;  // a CS5513 word at its slowest oscillator (DS337: CLK/612, 32 kHz)
     g_dev.set_sim_load_handler(on_load, 0);
     g_dev.boot();
 
