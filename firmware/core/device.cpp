@@ -28,7 +28,7 @@ Device::Device(Board& board)
       counter_(0), samples_missed_(0), sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true),
       resistance_started_(false), sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0),
       continuous_(false), continuous_ok_(false), conv_per_sample_(1), conv_seen_(0), word_armed_(false),
-      word_ready_(false), word_counts_(0), word_flags_(0) {
+      word_ready_(false), word_counts_(0), word_flags_(0), pending_len_(0), pending_samples_(0) {
     last_ack_ = proto::Ack();
     sample_ = proto::Sample();
 }
@@ -67,6 +67,9 @@ void Device::boot() {
 void Device::poll() {
     board_.kick_hw_watchdog();
     feed_steps();
+    // The continuous sampler has one conversion time (1.16 ms) to read each result before
+    // the next replaces it: it looks before and after the pass's longer work.
+    if (continuous_) run_sampler(board_.now_us());
     read_serial(board_.now_us());
     uint64_t now = board_.now_us();
     run_executor(now);
@@ -104,6 +107,7 @@ void Device::read_serial(uint64_t now) {
         if (parser_.feed(static_cast<uint8_t>(c), now)) {
             last_host_us_ = now;
             handle_frame(now, parser_.msg_id(), parser_.seq(), parser_.payload(), parser_.payload_len());
+            if (continuous_) run_sampler(board_.now_us());
         }
     }
 }

@@ -133,6 +133,7 @@ private:
     void progress_words(uint64_t now);
     void continuous_off();
     void flush_block();
+    void retry_block();
     void finish_resistance(uint8_t extra_flags);
     void abort_resistance();
     void sense_off();
@@ -205,6 +206,11 @@ private:
     int32_t word_counts_;
     uint8_t word_flags_;
     SampleBlockBuilder block_;
+    // a closed block the line had no room for yet (sent on a later pass; dropped only
+    // when the next block closes first)
+    uint8_t pending_[proto::SampleBlock::SIZE + proto::SampleBlock::MAX_ENTRIES * proto::SampleBlock::ENTRY_SIZE];
+    uint8_t pending_len_;
+    uint8_t pending_samples_;
 };
 
 }  // namespace fw

@@ -17,8 +17,10 @@
 // discarded by the driver (the sinc4 filter still averages the time it was off).
 //
 // Samples leave in SAMPLE_BLOCK frames (SampleBlockBuilder), sent the moment a block is
-// full or must close; a block the line has no room for is dropped whole (a gap of up to
-// six counter values).
+// full or must close. A block the line has no room for at that moment (urgent frames
+// waiting, the TX ring full: an ACK, QUEUE_STATUS and a move's EVENTs can fill it) waits
+// and is retried every pass; only when the next block closes while it still waits is it
+// dropped whole (a gap of up to six counter values).
 #include "config.h"
 #include "device.h"
 
@@ -109,9 +111,18 @@ void Device::progress_words(uint64_t now) {
 }
 
 void Device::flush_block() {
-    uint8_t buf[proto::SampleBlock::SIZE + proto::SampleBlock::MAX_ENTRIES * proto::SampleBlock::ENTRY_SIZE];
-    const uint8_t len = block_.take(buf);
-    if (len) writer_.send_droppable(proto::SampleBlock::ID, buf, len);
+    retry_block();
+    if (block_.size() == 0) return;
+    if (pending_len_) {  // the line never had room for the one before: it is lost
+        samples_missed_ += pending_samples_;
+    }
+    pending_samples_ = block_.size();
+    pending_len_ = block_.take(pending_);
+    retry_block();
+}
+
+void Device::retry_block() {
+    if (pending_len_ && writer_.try_send_sample(proto::SampleBlock::ID, pending_, pending_len_)) pending_len_ = 0;
 }
 
 void Device::continuous_off() {

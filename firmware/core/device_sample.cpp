@@ -55,6 +55,7 @@ void Device::set_sampling(uint32_t period_us, uint64_t t_us) {
 }
 
 void Device::run_sampler(uint64_t now) {
+    retry_block();
     if (continuous_) {
         run_continuous(now);
         return;
