@@ -60,6 +60,8 @@ static struct {
     int alert;             // ALERT/RDY asserted (latched or not)
     double rate_error;
     FILE *trace;
+    uint64_t done_cycle;   // when the latest conversion finished
+    int unread;            // the latest conversion has not been read yet
 } g;
 
 static const uint16_t SPS[8] = {8, 16, 32, 64, 128, 250, 475, 860};
@@ -134,6 +136,12 @@ static avr_cycle_count_t conversion_done(struct avr_t *avr, avr_cycle_count_t wh
     if (code < -32768) code = -32768;
     g.regs[0] = (uint16_t)(int16_t)code;
     h->ads_conversions++;
+    if (g.continuous && g.unread && rdy_mode()) {  // the one before was never read: a lost sample
+        h->ads_unread++;
+        if (g.trace) fprintf(g.trace, "ads_unread %.3f pc 0x%05x\n", harness_app_us(h, avr->cycle), avr->pc);
+    }
+    g.unread = 1;
+    g.done_cycle = avr->cycle;
     if (rdy_mode()) {
         if (g.continuous) {
             wiring_pull(h, RIG_ADS_RDY_PORT, RIG_ADS_RDY_BIT, !rdy_idle_level());
@@ -230,6 +238,11 @@ static void on_twi(struct avr_irq_t *irq, uint32_t value, void *param) {
     if (msg & TWI_COND_READ) {
         // The master asks for the next byte: MSB first, then LSB, then repeat.
         uint16_t v = g.regs[g.pointer];
+        if (g.pointer == 0 && !(g.write_index & 1) && g.unread) {  // the MSB of a fresh conversion
+            const double us = (double)(g.h->avr->cycle - g.done_cycle) * 1e6 / HZ_CPU;
+            if (us > g.h->ads_read_latency_max_us) g.h->ads_read_latency_max_us = us;
+            g.unread = 0;
+        }
         if (g.pointer == 1) v = (uint16_t)((v & 0x7FFF) | (g.converting || g.continuous ? 0 : 0x8000));
         const uint8_t byte = (g.write_index & 1) ? (uint8_t)v : (uint8_t)(v >> 8);
         g.write_index++;

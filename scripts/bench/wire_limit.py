@@ -78,7 +78,7 @@ def main() -> int:
                     help="the emulated ADS1115's oscillator error (+0.05: 5 %% slow; data sheet +-10 %%)")
     args = ap.parse_args()
 
-    settings = dataclasses.replace(simavr_settings(BENCH), build=True, ads_rate_error=args.ads_rate_error)
+    settings = dataclasses.replace(simavr_settings(BENCH), build=True, ads_rate_error=args.ads_rate_error, trace=True)
     wall0, cpu0 = time.monotonic(), cpu_s()
     with SimavrBench(BENCH, settings, seed=1) as bench:
         raw = serial.Serial(bench.port_path, 250000, timeout=0.02)
@@ -153,7 +153,9 @@ def main() -> int:
     print(f"  line use          {rx / span_s:,.0f} bytes/s of {LINE_BYTES_PER_S:,.0f} ({rx / span_s / LINE_BYTES_PER_S:.1%}); "
           f"{rx / n:.1f} bytes/sample (a SAMPLE frame: {SAMPLE_BYTES})")
     print(f"  harness           ADS1115 conversions {adc.get('ads1115_conversions')}, ALERT/RDY pulses "
-          f"{adc.get('ads1115_rdy_pulses')}; UART RX overruns {summary.get('violations', {}).get('uart_rx_overrun')}; "
+          f"{adc.get('ads1115_rdy_pulses')}, results never read {adc.get('ads1115_unread')}, longest wait from a "
+          f"conversion's end to its read {adc.get('ads1115_read_latency_max_us')} us (a conversion lasts "
+          f"{1e6 / ADS1115_SPS:.0f}); UART RX overruns {summary.get('violations', {}).get('uart_rx_overrun')}; "
           f"step underruns {status.step_underruns}")
     isr = summary.get("isr", {})
     if isr:
@@ -165,6 +167,11 @@ def main() -> int:
     if gap_at:
         print("  gaps (samples lost, device s, moving): " + ", ".join(f"{g} at {t:.3f} s{' moving' if mv else ''}"
                                                                for g, t, mv in gap_at[:10]))
+    unread = [line.split() for line in (bench.trace_text or "").splitlines() if line.startswith("ads_unread")]
+    if unread:
+        print("  unread results (device us, the AVR's PC when the next one replaced it: "
+              "avr-addr2line -f -e firmware/build/tsa_bench.elf): "
+              + ", ".join(f"{u[1]} pc {u[3]}" for u in unread[:10]))
     failures = []
     if gaps:
         failures.append(f"{gaps} counter gaps")

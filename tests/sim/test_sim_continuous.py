@@ -53,6 +53,13 @@ def test_a_period_the_line_cannot_carry_is_refused_with_the_reason(tmp_path):
     assert client.command(msg.SetSampling(0xFFFF, 2326)).status == msg.Status.OK   # every second conversion
     with pytest.raises(CommandRefused, match="shorter than one ADS1115 conversion"):
         client.command(msg.SetSampling(0xFFFF, 1000))
+    # a run at that period stops at once and says why
+    plan = load_plan_text("name: fast\nload_g: 300\nsampling_period_s: 0.001163\nsteps:\n  - hold: {duration_s: 1}\n",
+                          load_bench(slow).limits, "fast.yaml")
+    stop = Runner(_client(f"sim://?bench={slow}&seed=0"), plan, load_bench(slow), [RunWriter(tmp_path / "r.h5")],
+                  AutoOperator(), backend="sim", port_name="sim://").run()
+    assert stop.exit_status == "failed"
+    assert "too_fast_for_line" in stop.reason and "115200 baud" in stop.reason
 
 
 def test_a_run_at_860_per_second_stores_every_sample(tmp_path):
