@@ -66,10 +66,12 @@ void Device::boot() {
 
 void Device::poll() {
     board_.kick_hw_watchdog();
-    feed_steps();
     // The continuous sampler has one conversion time (1.16 ms) to read each result before
-    // the next replaces it: it looks before and after the pass's longer work.
+    // the next replaces it: it looks between the pass's longer parts (here after the
+    // previous pass's output, in read_serial after each frame, after each step feed and
+    // a move's begin()).
     if (continuous_) run_sampler(board_.now_us());
+    feed_steps();
     read_serial(board_.now_us());
     uint64_t now = board_.now_us();
     run_executor(now);
