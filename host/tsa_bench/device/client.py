@@ -116,10 +116,6 @@ class BenchClient:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
         self.last_tx_wall = time.monotonic()
 
-    def _baud(self) -> int | None:
-        baud = getattr(self.port, "baudrate", None)
-        return baud if isinstance(baud, int) else None
-
     def _port_name(self) -> str:
         return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
 
@@ -224,7 +220,7 @@ class BenchClient:
                     raise CommandRefused(spec.name, ack.status,
                                          f"device refused {spec.name} {tuple(message)}: "
                                          f"{msg.Status(ack.status).name.lower()}"
-                                         f"{refusal_reason(message, ack.status, self._baud())}")
+                                         f"{refusal_reason(message, ack.status)}")
                 return ack
             waited_s = time.monotonic() - wall0
             if dev0 is not None and self._last_dev_us is not None:

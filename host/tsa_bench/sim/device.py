@@ -75,7 +75,7 @@ from typing import NamedTuple
 from tsa_bench.bench.config import BenchConfig
 from tsa_bench.protocol import catalogue as msg
 from tsa_bench.protocol.blocks import (
-    ADS1115_SPS, SINGLE_SHOT_MIN_PERIOD_US, BlockBuilder, conversions_per_sample, frame_bytes, sampling_refusal,
+    ADS1115_SPS, SAMPLES_PER_BLOCK, SINGLE_SHOT_MIN_PERIOD_US, BlockBuilder, conversions_per_sample, frame_bytes, sampling_refusal,
 )
 from tsa_bench.protocol.codec import Frame, encode
 from tsa_bench.protocol.framing import FrameDecoder, RawFrame, encode_raw
@@ -313,14 +313,17 @@ class SimDevice:
                   ex.segment)
         if self._step_us:
             self._send_block(self._block.add(msg.Sample(*fields)))
+            if len(self._block) >= SAMPLES_PER_BLOCK:     # full: out at once, as the firmware does
+                self._send_block(self._block.flush())
         elif self._frames is None:
             data = encode_raw(0x83, self._seq, _SAMPLE_PACK(*fields))
             self._out += data
             self._produced += len(data)
+            self._seq = (self._seq + 1) & 0xFFFF
         else:
             self._frames.append((Frame(self._seq, msg.Sample(*fields)), _SAMPLE_FRAME_BYTES))
             self._produced += _SAMPLE_FRAME_BYTES
-        self._seq = (self._seq + 1) & 0xFFFF
+            self._seq = (self._seq + 1) & 0xFFFF
         self._counter = (self._counter + 1) & 0xFFFFFFFF
         self._k += 1
         if self._step_us:
