@@ -89,7 +89,7 @@ def main() -> int:
             client.connect(10.0)
             client.set_position(0)
             client.command(msg.SetSampling(1, ADS1115_CONVERSION_US))
-            n = gaps = words = 0
+            n = gaps = words = invalid = 0
             gap_at: list[tuple[int, float, int]] = []
             first = last = None
             t_start_us = t_words_from_us = None
@@ -114,6 +114,7 @@ def main() -> int:
                         if t_words_from_us is not None and m.t_us >= t_words_from_us:
                             words += not m.adc_flags & NOT_MEASURED
                         n += 1
+                        invalid += bool(m.adc_flags & msg.AdcFlags.POSITION_INVALID)
                         last = m
                     elif isinstance(m, msg.Event) and args.move and m.kind == msg.EventKind.QUEUE_EMPTY:
                         # the queue ran dry (SET_SAMPLING's, then each move's): the next move
@@ -146,7 +147,8 @@ def main() -> int:
           f"{args.ads_rate_error:+.0%}), sampling period {ADS1115_CONVERSION_US} us"
           f"{', motor turning 0 <-> 20 turns at 16,000 steps/s' if args.move else ''}")
     print(f"  device time       {span_s:,.1f} s ({span_s / 60:.2f} min)")
-    print(f"  position samples  {n:,}: {rate:,.2f} per s, counter gaps {gaps} (samples lost)")
+    print(f"  position samples  {n:,}: {rate:,.2f} per s, counter gaps {gaps} (samples lost), "
+          f"position invalid {invalid}")
     print(f"  resistance words  {words:,}: {word_rate:.2f} per s (CS5513 converter every "
           f"{settings.cs5513_conversion_us:,.0f} us: {expected_words:.2f} per s); "
           f"{words / max(1, n):.1%} of samples carry one")
@@ -156,7 +158,7 @@ def main() -> int:
           f"{adc.get('ads1115_rdy_pulses')}, results never read {adc.get('ads1115_unread')}, longest wait from a "
           f"conversion's end to its read {adc.get('ads1115_read_latency_max_us')} us (a conversion lasts "
           f"{1e6 / ADS1115_SPS:.0f}); UART RX overruns {summary.get('violations', {}).get('uart_rx_overrun')}; "
-          f"step underruns {status.step_underruns}")
+          f"step underruns {status.step_underruns}; I2C bus recoveries {status.i2c_recoveries}")
     isr = summary.get("isr", {})
     if isr:
         worst = ", ".join(f"{v['name'] if v['name'] != '?' else 'vector ' + k} {v['max_cycles']}"
