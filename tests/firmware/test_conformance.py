@@ -117,7 +117,7 @@ def test_firmware_core_samples_continuously_like_the_simulated_device(native_bin
     from tests import conformance_scenarios as sc
 
     sim = sc.continuous_sampling(Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0))
-    fw_port = NativeFirmwarePort(native_binary, "--virtual")
+    fw_port = NativeFirmwarePort(native_binary, "--virtual", "--cs5513-us", "19125")
     try:
         fw_port.read(64)  # its BOOT
         fw = sc.continuous_sampling(Exchange(fw_port, settle_s=0.05, first_reply_s=1.0))
