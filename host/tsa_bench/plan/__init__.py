@@ -13,7 +13,7 @@ from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, S
 from tsa_bench.plan.errors import PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.loader import DEFAULT_SAMPLING_PERIOD_S, load_plan, load_plan_text
-from tsa_bench.plan.model import Plan, PlanSummary
+from tsa_bench.plan.model import Plan, PlanSummary, Segments
 from tsa_bench.plan.report import format_duration, format_summary
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "PlanSummary",
     "Prompt",
     "Segment",
+    "Segments",
     "SetHeater",
     "SetSampling",
     "Settle",
