@@ -105,3 +105,30 @@ def test_a_damaged_coded_table_is_refused_in_one_line(coded, tmp_path, edit, say
     with pytest.raises(RunFileError, match=says) as info:
         read_run(bad)
     assert str(bad) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_new_kinds_and_texts_beyond_the_remembered_ones_read_back(tmp_path, monkeypatch):
+    """A kind the writer does not know yet gets the next code (kind_names grows); once it
+    remembers MAX_REMEMBERED_TEXTS texts, new texts are stored each time, still readable."""
+    from tests.store.test_hdf5 import block, start_doc
+    from tsa_bench.runner.documents import RunStop, SegmentRecord
+    from tsa_bench.store import RunWriter, hdf5
+
+    monkeypatch.setattr(hdf5, "MAX_REMEMBERED_TEXTS", 3)
+    path = tmp_path / "run.h5"
+    w = RunWriter(path, flush_interval_s=0.0, min_flush_interval_s=0.0)
+    w.on_start(start_doc())
+    w.on_samples(block(0, 5))
+    records = [SegmentRecord(i, "twist_heat" if i % 3 == 0 else "hold", i, i + 1.0, {"n": i % 5}, "p.yaml:3",
+                             i % 2, i != 9) for i in range(10)]
+    for r in records:
+        w.on_segment(r)
+    w.on_stop(RunStop("success", "all segments done", 10.0, 5, 0, 10, 0.1))
+    segs = read_run(path).segments
+    assert [k.decode() for k in segs["kind"]] == [r.kind for r in records]
+    assert [json.loads(p) for p in segs["params"]] == [r.params for r in records]
+    assert list(segs["completed"]) == [1] * 9 + [0] and list(segs["cycle"]) == [i % 2 for i in range(10)]
+    with h5py.File(path, "r") as f:
+        assert json.loads(f["segments"].attrs["kind_names"])[-1] == "twist_heat"
+        assert len(f["segment_texts"]) > 5      # beyond 3 remembered texts, repeats are stored again
+    assert inspect_run(path).segment_kinds == w.summary().segment_kinds == {"twist_heat": 4, "hold": 6}
