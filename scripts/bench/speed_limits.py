@@ -142,13 +142,16 @@ def file_figures(path: Path) -> tuple[int, float, float, float, float]:
         device_s = float(f.attrs["duration_s"])
         seg = 0
         for name in ("segments", "segment_texts"):
-            if name in f:
-                seg += f[name].id.get_storage_size()
-                if f[name].dtype.names is None and f[name].dtype.kind == "O":   # variable-length texts: their heap
-                    seg += sum(len(v) for v in f[name][()])
-                elif f[name].dtype.names:
-                    seg += sum(len(r[k]) for r in f[name][()] for k in f[name].dtype.names
-                               if f[name].dtype[k].kind == "O")
+            if name not in f:
+                continue
+            ds = f[name]
+            seg += ds.id.get_storage_size()
+            texts = [k for k in ds.dtype.names or () if ds.dtype[k].kind == "O"]   # variable-length: their heap
+            data = ds[()]
+            if ds.dtype.kind == "O":
+                seg += sum(len(v) for v in data)
+            for k in texts:
+                seg += sum(len(v) for v in data[k])
     return n, device_s, path.stat().st_size / n, cols / n, seg / n
 
 
