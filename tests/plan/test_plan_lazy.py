@@ -8,6 +8,7 @@ and at random, with spans small enough that the cache evicts.
 
 from __future__ import annotations
 
+import pickle
 import random
 
 import pytest
@@ -107,6 +108,7 @@ def test_nested_loops_and_relative_moves(small_spans):
     expected = _eager(small_spans[-1])
     assert len(expected) == 2 + 3 * (1 + 5 * (2 + 2 * 2))
     _same(plan, expected)
+    assert list(pickle.loads(pickle.dumps(plan)).segments) == expected   # a plan still travels to a process
     s = plan.summary()
     assert s.segment_count == len(expected) and s.final_twist_turns == 0
     assert s.twist_range_turns == (0.0, max(e.action.target_turns for e in expected if e.kind == "move"))

@@ -1,6 +1,8 @@
 """Experiment protocols: load YAML protocols, validate them against bench limits, and
-compile them into a flat list of segments (moves, holds, heater and sampling changes,
-operator prompts) with position-pinned error reports.
+compile them into a sequence of segments (moves, holds, heater and sampling changes,
+operator prompts) with position-pinned error reports. Every segment is checked when the
+protocol loads; ``plan.segments`` expands repeat blocks again on demand (memory flat in
+the number of cycles).
 
 Typical use::
 

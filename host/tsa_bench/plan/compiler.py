@@ -121,8 +121,10 @@ class _Walker:
             elif kind is ForEachOp:
                 if op.bodies:
                     stack.append([op.bodies[0], 0, 0, op, 0])
-            else:  # LostTwistOp
+            elif kind is LostTwistOp:
                 self.position_turns = None
+            else:
+                raise TypeError(f"the compiler does not know the operation {op!r}")
         return None
 
     def _segment(self, action, cycle: int | None, source: str) -> Segment:
@@ -203,7 +205,7 @@ def compile_ops(ops: Sequence[Op], limits: Limits, sink: ErrorSink, steps_node: 
     if size > MAX_SEGMENTS:
         sink.add(steps_node, "steps", f"protocol expands to {size:,} segments",
                  f"at most {MAX_SEGMENTS:,} segments")
-        return Segments(0, CHECKPOINT_SEGMENTS, lambda k: [])
+        return Segments.empty()
     walker = _Walker.at_start(ops, limits, sink)
     checkpoints: list[Checkpoint] = []
     step = walker.next

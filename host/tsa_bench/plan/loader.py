@@ -106,7 +106,7 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
     variables = _variables(reader, top.get("variables"))
     defaults = _defaults(reader, _substituted(reader, top.get("defaults"), variables, "defaults"), limits)
 
-    segments = Segments(0, 1, lambda k: [])
+    segments = Segments.empty()
     cycles = 0
     if "steps" in top:
         ops = StepParser(reader, limits, defaults, filename, variables).parse_steps(top["steps"], "steps")

@@ -39,6 +39,11 @@ class Segments(Sequence[Segment]):
         self._cache: OrderedDict[int, list[Segment]] = OrderedDict()
         self._keep = max(1, CACHED_SEGMENTS // span_size)
 
+    @classmethod
+    def empty(cls) -> Segments:
+        """No segments (a plan without steps)."""
+        return cls(0, 1, _no_segments)
+
     def __len__(self) -> int:
         return self._n
 
@@ -78,6 +83,10 @@ class Segments(Sequence[Segment]):
 
     def __repr__(self) -> str:
         return f"Segments({self._n} segments, expanded on demand)"
+
+
+def _no_segments(k: int) -> list[Segment]:
+    return []
 
 
 @dataclass(frozen=True)
