@@ -32,8 +32,12 @@ steps:
 {after}"""
 
 
+#: Two length steps after the rest and twist of :func:`protocol`.
+STEPS_TEXT = protocol("targets: [{length_mm: 201, hold_s: 20}, {length_mm: 211, hold_s: 20}]")
+
+
 def run_text(text: str, out: Path, *, seed: int = 2, bench=SCHEME2, consumers=(), interrupts=None,
-             speed: float | None = None):
+             speed: float | None = None, writer: RunWriter | None = None, block_samples: int | None = None):
     """Run a protocol text on the simulated ``bench`` (as fast as possible, or ``speed`` x real
     time); return (RunStop, RunData)."""
     from tsa_bench.device import BenchClient
@@ -43,8 +47,9 @@ def run_text(text: str, out: Path, *, seed: int = 2, bench=SCHEME2, consumers=()
     client = BenchClient(port, ack_timeout_s=bench.ack_timeout_s)
     client.connect(bench.boot_timeout_s)
     path = out / "run.h5"
-    runner = Runner(client, plan, bench, [RunWriter(path), *consumers], AutoOperator(), backend="sim",
-                    port_name="sim://", interrupts=interrupts)
+    runner = Runner(client, plan, bench, [writer or RunWriter(path), *consumers], AutoOperator(), backend="sim",
+                    port_name="sim://", interrupts=interrupts,
+                    **({} if block_samples is None else {"block_samples": block_samples}))
     stop = runner.run()
     port.close()
     return stop, read_run(path)

@@ -7,7 +7,7 @@ import random
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tsa_bench.device.link import FrameSequencer
+from tsa_bench.device.link import REMEMBER, FrameSequencer
 from tsa_bench.protocol import Frame, msg
 
 
@@ -82,3 +82,48 @@ def test_whatever_the_line_does_frames_come_out_in_order_once(n, seed, start, dr
     assert got == sorted(set(got)), "not strictly increasing"
     assert set(got) <= set(line) and set(got) | set(late) == set(line)
     assert seq.stats.lost + len(got) >= got[-1] - got[0] + 1 if got else True
+
+
+class OneByOne(FrameSequencer):
+    """The sequencer without its bulk release of in-order runs: every frame takes the general path."""
+
+    def _release_in_order(self, frames, out):
+        return frames
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(5, 6000), seed=st.integers(0, 2**32), start=st.integers(0, 65535),
+       drop=st.floats(0, 0.05), dup=st.floats(0, 0.05), swap=st.floats(0, 0.05), stale=st.floats(0, 0.02))
+def test_in_order_runs_released_in_bulk_as_frame_by_frame(n, seed, start, drop, dup, swap, stale):
+    """Batches of any size (the in-process port hands over many frames at once): the same
+    frames come out, the same are late, the same counters, the same numbers remembered as
+    released (more than the remembered window, so old duplicates are told from late frames)."""
+    rng = random.Random(seed)
+    line = []
+    for s in range(start, start + n):
+        if rng.random() < drop:
+            continue
+        line.append(s)
+        if rng.random() < dup:
+            line.append(s)
+        if line and rng.random() < stale:
+            line.append(max(start, s - rng.randrange(1, 5000)))  # an old frame repeated much later
+    for i in range(len(line) - 1):
+        if rng.random() < swap:
+            line[i], line[i + 1] = line[i + 1], line[i]
+    bulk, single = FrameSequencer(clock=Clock()), OneByOne(clock=Clock())
+    got_bulk, got_single = [], []
+    i = 0
+    while i < len(line):
+        k = rng.choice([1, 2, 3, 50, 700])
+        got_bulk += bulk.push(frames(line[i:i + k]))
+        for s in line[i:i + k]:
+            got_single += single.push(frames([s]))
+        i += k
+    assert [f.message.counter for f in got_bulk] == [f.message.counter for f in got_single]
+    assert [f.message.counter for f in bulk.take_late()] == [f.message.counter for f in single.take_late()]
+    assert bulk.stats == single.stats
+    assert bulk._released == single._released
+    remembered = len(got_bulk) + bulk.stats.late          # numbers remembered as they came
+    assert len(bulk._released) == min(REMEMBER, remembered)
+    assert {f.seq for f in got_bulk[-100:]} <= bulk._released

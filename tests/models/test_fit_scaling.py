@@ -8,6 +8,7 @@ matrix in one non-negative least squares)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
@@ -69,3 +70,40 @@ def test_preisach_fit_equals_the_dense_least_squares():
     ours = model.offset + model.sign * states[ok] @ np.asarray(model.weights)
     assert np.abs(ours - direct).max() < 1e-9
     assert np.sqrt(np.mean((ours - y[ok]) ** 2)) < 0.011   # the noise, not the model, is left
+
+
+@pytest.mark.parametrize("dense_max", [10**9, 0])   # the direct form, and levels taken out first
+def test_the_transient_decay_fit_equals_the_full_problem_with_one_level_per_curve(monkeypatch, dense_max):
+    """Curve levels taken out first give the same b1, b2 and levels as the dense formulation
+    (one column per curve), which grows as samples x curves and stalled a day-long run."""
+    from scipy.optimize import lsq_linear
+
+    from tsa_bench.models import transient
+    from tsa_bench.models.transient import EPS_S, fit_decay
+
+    monkeypatch.setattr(transient, "DENSE_MAX_ENTRIES", dense_max)
+
+    rng = np.random.default_rng(5)
+    curves = []
+    for i in range(25):
+        dt = np.sort(rng.uniform(0.0, 150.0, int(rng.integers(0, 40))))
+        y = 5.0 + rng.normal(0, 0.1) - 2e-3 * np.log(dt + EPS_S) ** 2 - 4e-3 * np.log(dt + EPS_S) \
+            + rng.normal(0, 1e-3, len(dt))
+        if len(dt) > 3:
+            y[1] = np.nan
+        curves.append((dt, y))
+    b1, b2, levels = fit_decay(curves)
+    blocks, rhs = [], []
+    for i, (dt, y) in enumerate(curves):
+        ok = np.isfinite(y)
+        lg = np.log(dt[ok] + EPS_S)
+        block = np.zeros((ok.sum(), len(curves) + 2))
+        block[:, 0], block[:, 1], block[:, 2 + i] = lg * lg, lg, 1.0
+        blocks.append(block)
+        rhs.append(y[ok])
+    hi = np.r_[0.0, 0.0, np.full(len(curves), np.inf)]
+    full = lsq_linear(np.vstack(blocks), np.concatenate(rhs), bounds=(-np.inf, hi), method="bvls").x
+    assert b1 == pytest.approx(full[0], abs=1e-9) and b2 == pytest.approx(full[1], abs=1e-9) and b1 < 0
+    has = np.array([np.isfinite(y).any() for _, y in curves])
+    np.testing.assert_allclose(levels[has], full[2:][has], atol=1e-8)
+    assert np.isnan(levels[~has]).all() and (~has).any()

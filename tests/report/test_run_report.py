@@ -19,6 +19,7 @@ EXPECTED = {
     "stiffness-3ply": {"stiffness"}, "stiffness-4ply": {"stiffness"},
     "twist-sweep-3ply": {"loops", "resistance_length"}, "twist-sweep-4ply": {"loops", "resistance_length"},
     "twist-heat-4ply": {"loops", "voltage"},
+    "twist-heat-grid": {"twist_heat", "voltage"}, "twist-heat-simultaneous": {"twist_heat"},
     "quasi-static-self-sensing": {"resistance_length", "transient"},
     "quasi-static-self-sensing-settled": {"resistance_length", "transient"},
     "transient-steps": {"transient"}, "lifetime": {"drift"},
@@ -33,7 +34,7 @@ TRACKING = {"track-length-steps", "track-length-loads"}
 FORBIDDEN = {
     "stiffness-3ply": {"loops", "voltage", "drift", "transient", "resistance_length"},
     "twist-sweep-3ply": {"voltage", "drift", "stiffness"},
-    "twist-heat-4ply": {"drift", "stiffness"},
+    "twist-heat-4ply": {"drift", "stiffness", "twist_heat"},   # heated at full twist only
     "lifetime": {"voltage", "stiffness"},
 }
 
@@ -51,7 +52,7 @@ def test_every_shipped_protocol_gets_its_thesis_figures(protocol_runs, tmp_path)
         assert "timeseries" in kinds and EXPECTED[name] <= kinds, (name, kinds)
         assert not (FORBIDDEN.get(name, set()) & kinds), (name, kinds)
         assert set(rep.skipped) | kinds == {"timeseries", "stiffness", "loops", "voltage", "resistance_length",
-                                            "transient", "drift", "tracking", "extras", "extras_xy"}
+                                            "transient", "drift", "tracking", "extras", "extras_xy", "twist_heat"}
         if name in TRACKING:  # the estimate, target and controller state columns
             assert {"tracking", "extras"} <= kinds
         else:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import click
 
-from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail
+from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail, unwritable_reason
 
 
 def _default_out(first_run: str) -> Path:
@@ -88,6 +88,12 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
         empty = next(r.path for r in runs if len(r) == 0)
         fail(f"{empty}: the run has no samples; nothing to diagnose")
 
+    out = Path(out_dir) if out_dir else _default_out(run_files[0])
+    for target in (out, Path(json_path) if json_path else None):
+        why = unwritable_reason(target) if target is not None else None
+        if why:
+            fail(f"{target}: cannot write the report there ({why}); nothing was analysed")
+
     from tsa_bench import analysis
 
     shown = model_path or str(analysis.BASELINE)
@@ -108,7 +114,6 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
 
     from tsa_bench.report.diagnose_report import write_json, write_report
 
-    out = Path(out_dir) if out_dir else _default_out(run_files[0])
     say(f"writing the report into {out}")
     try:
         paths = write_report(result, runs, out)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from tsa_bench.cli.exits import fail
+from tsa_bench.cli.exits import fail, unwritable_reason
 
 
 @click.command("estimate")
@@ -37,6 +37,9 @@ def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], ou
             fail("--train fits a model; give RUN and --model only to estimate")
         if not out:
             fail("--train needs --out M.json (where to write the model)")
+        why = unwritable_reason(out)
+        if why:
+            fail(f"{out}: cannot write the model file there ({why})")
         try:
             model = ls.fit([_read(p) for p in train])
             ls.save(model, out)

@@ -12,14 +12,15 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
-from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED
+from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, unwritable_reason
 
 if TYPE_CHECKING:
     from rich.console import Console
     from rich.table import Table
 
 # The names of tsa_bench.models.saved.MODEL_NAMES, here so that --help does not import the models.
-MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing")
+MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing", "twist-heat-additive",
+               "twist-heat-coupled")
 
 
 def _fail(msg: str, code: int = EXIT_BAD_INPUT) -> NoReturn:
@@ -82,6 +83,9 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
         _fail(f"--levels must be 1..200 (the thesis uses 20), got {levels}")
     if load_g is not None and not 0 <= load_g < float("inf"):
         _fail(f"--load-g must be a mass >= 0 g, got {load_g}")
+    why = unwritable_reason(out)
+    if why:   # before the fit, which can take a while on a long run
+        _fail(f"{out}: cannot write the model file there ({why})")
     train = _read(runs)
     val = _read(validate)
     try:

@@ -12,7 +12,7 @@ import time
 
 import click
 
-from tsa_bench.cli.exits import fail
+from tsa_bench.cli.exits import fail, unwritable_reason
 
 
 def _num(v: float | None) -> str:
@@ -57,6 +57,9 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
         records = [r for r in records if r.chapter == chapter]
         if not records:
             fail(f"no records of chapter {chapter}")
+    why = unwritable_reason(figures_dir) if figures_dir is not None else None
+    if why:   # before the experiments run, not after them
+        fail(f"{figures_dir}: cannot write the figures there ({why})")
     lab = Lab(seed=seed, quick=quick)
     rows = evaluate(records, lab, plan)
     summ = summary(rows)
@@ -65,7 +68,11 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
     if figures_dir is not None:
         from tsa_bench.reproduce.figures import write_figures
 
-        for path in write_figures(records, rows, figures_dir):
+        try:
+            written = write_figures(records, rows, figures_dir)
+        except OSError as exc:
+            fail(f"{exc.filename or figures_dir}: cannot write the figure ({exc.strerror or exc})")
+        for path in written:
             click.echo(f"wrote {path}", err=as_json)
     if as_json:
         click.echo(json.dumps({"rows": [r.as_dict() for r in rows], "summary": summ}, indent=1))

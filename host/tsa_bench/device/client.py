@@ -99,10 +99,11 @@ class BenchClient:
                 self._late_acks.append(late.message)  # may still answer the command awaited now
             else:
                 self.late_dropped += 1    # a late sample or event would be out of order
-        for m in out:
+        for m in reversed(out):     # the latest device time seen
             t_us = getattr(m, "t_us", None)
             if t_us is not None:
                 self._last_dev_us = t_us
+                break
         return out
 
     def _write(self, frame: bytes, seq: int | None = None, message: NamedTuple | None = None) -> None:
@@ -205,7 +206,7 @@ class BenchClient:
         """
         spec = spec_of(message)
         seq = self._next_seq()
-        frame = encode(message, seq)
+        frame = encode(message, seq) if self._write_frame is None else b""  # in-process: no bytes
         wall0, dev0 = time.monotonic(), self._last_dev_us
         transmissions = 0
         while True:
@@ -232,7 +233,7 @@ class BenchClient:
     def poll(self) -> list[NamedTuple]:
         """Everything received since the last poll (reads the port once if nothing is kept)."""
         if not self._inbox:
-            self._inbox.extend(self._read())
+            return self._read()
         out = list(self._inbox)
         self._inbox.clear()
         return out

@@ -24,7 +24,6 @@ frames releases what has waited long enough.
 from __future__ import annotations
 
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -67,7 +66,9 @@ class FrameSequencer:
         self._expected: int | None = None
         self._held: dict[int, tuple[Frame, float]] = {}
         self._released: set[int] = set()
-        self._released_order: deque[int] = deque()
+        # numbers in release order; the last REMEMBER from _order_head on are remembered
+        self._released_order: list[int] = []
+        self._order_head = 0
 
     def _ahead(self, seq: int) -> int:
         assert self._expected is not None
@@ -89,8 +90,19 @@ class FrameSequencer:
     def _remember(self, seq: int) -> None:
         self._released.add(seq)
         self._released_order.append(seq)
-        if len(self._released_order) > REMEMBER:
-            self._released.discard(self._released_order.popleft())
+        self._forget_oldest()
+
+    def _forget_oldest(self) -> None:
+        """Forget the numbers beyond the last REMEMBER released (bulk, then compact now and then)."""
+        order = self._released_order
+        extra = len(order) - self._order_head - REMEMBER
+        if extra > 0:
+            head = self._order_head
+            self._released.difference_update(order[head:head + extra])
+            self._order_head = head = head + extra
+            if head >= 4 * REMEMBER:
+                del order[:head]
+                self._order_head = 0
 
     def _give_up_gap(self, out: list[Frame]) -> None:
         """Declare lost the numbers before the lowest held frame, release from there."""
@@ -107,12 +119,15 @@ class FrameSequencer:
         self._held.clear()
         self._released.clear()
         self._released_order.clear()
+        self._order_head = 0
         self.stats.restarts += 1
         self._emit(frame, out)
 
     def push(self, frames: list[Frame]) -> list[Frame]:
         """Frames now in order (possibly none); late ones go to :attr:`late`."""
         out: list[Frame] = []
+        if frames and not self._held and self._expected is not None:
+            frames = self._release_in_order(frames, out)
         for frame in frames:
             seq = frame.seq
             if self._expected is None:
@@ -145,6 +160,28 @@ class FrameSequencer:
         while self._held and now - min(t for _, t in self._held.values()) >= self.hold_s:
             self._give_up_gap(out)
         return out
+
+    def _release_in_order(self, frames: list[Frame], out: list[Frame]) -> list[Frame]:
+        """The common case in bulk: release the leading frames that follow on, one number
+        after another (no gap, no BOOT); return the rest for the general path."""
+        expected = self._expected
+        n = 0
+        for frame in frames:
+            if frame.seq != expected or type(frame.message) is msg.Boot:
+                break
+            expected = (expected + 1) % SEQ_MOD
+            n += 1
+        if n == 0:
+            return frames
+        run = frames[:n] if n < len(frames) else frames
+        out.extend(run)
+        self.stats.released += n
+        self._expected = expected
+        seqs = [f.seq for f in run]
+        self._released.update(seqs)
+        self._released_order.extend(seqs)
+        self._forget_oldest()
+        return frames[n:] if n < len(frames) else []
 
     def take_late(self) -> list[Frame]:
         """Late frames seen since the last call."""

@@ -23,7 +23,9 @@ Contract:
   model on the same runs, then the envelopes.
 * :func:`fit` returns a :class:`~tsa_bench.models.saved.SavedModel` with the
   identification metrics of each training run and the validation metrics of each
-  ``validate`` run; :func:`evaluate` predicts one run with a saved model. A run that
+  ``validate`` run; :func:`evaluate` predicts one run with a saved model.
+* twist-heat-additive / twist-heat-coupled map twist and heater voltage together to
+  length (:mod:`tsa_bench.models.twist_heat`, its own quasi-static samples and fit). A run that
   lacks a needed column (or has no usable samples) raises :class:`FitError` naming
   the file.
 """
@@ -34,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.models import twist_heat
 from tsa_bench.models.metrics import compare
 from tsa_bench.models.polynomial import PolynomialModel
 from tsa_bench.models.preisach import PreisachModel
@@ -193,6 +196,8 @@ def _to_saved(model: str, obj: Any, io: tuple[str, str], units: tuple[str, str])
 def from_saved(saved: SavedModel) -> Any:
     """The model object of a saved model (raises ModelFileError on a missing parameter)."""
     v = saved.value
+    if saved.model in twist_heat.NAMES:
+        return twist_heat.to_model(saved)
     if saved.model == "preisach":
         return PreisachModel(int(v("levels")), float(v("u_min")), float(v("u_max")),
                              tuple(map(float, v("weights"))), float(v("offset")), float(v("sign")))
@@ -232,8 +237,10 @@ def _predict(obj: Any, run: RunData, io: tuple[str, str], load_g: float | None =
 def evaluate(saved: SavedModel, run: RunData, obj: Any | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Prediction of ``run`` and its metrics (:class:`~tsa_bench.models.metrics.Metrics` as a dict),
     scored at the model's training load when it was fitted at one (``options['load_g']``)."""
-    io = (saved.input["column"], saved.output["column"])
     model = from_saved(saved) if obj is None else obj
+    if saved.model in twist_heat.NAMES:
+        return twist_heat.score(model, run)
+    io = (saved.input["column"], saved.output["column"])
     pred, mask = _predict(model, run, io, saved.options.get("load_g"))
     y = _column(run, io[1])
     if not (mask & np.isfinite(y)).any():
@@ -249,6 +256,13 @@ def fit(model: str, runs: list[RunData], input_col: str | None = None, output_co
     ``load_g`` (preisach, polynomial) fits and scores only the samples at that declared
     load: the thesis fits one model per load, a run of several loads otherwise mixes curves.
     """
+    if model in twist_heat.NAMES:
+        if input_col is not None or output_col is not None or load_g is not None:
+            raise FitError(f"model '{model}' maps turns and heater_voltage -> length; --input, --output and "
+                           "--load-g do not apply")
+        if not runs:
+            raise FitError("no training runs given")
+        return twist_heat.fit_saved(model, runs, validate)
     io = _check_io(model, input_col, output_col)
     if not runs:
         raise FitError("no training runs given")
@@ -347,6 +361,9 @@ def fit_notes(saved: SavedModel, runs: list[RunData]) -> list[str]:
     load_g = saved.options.get("load_g")
     n_fit = 0
     for r in runs:
+        if saved.model in twist_heat.NAMES:
+            n_fit += int(saved.metrics["identification"].get(r.path, {}).get("n", 0))
+            continue
         if saved.model in FIXED_IO:
             n_fit += int(saved.metrics["identification"].get(r.path, {}).get("n", 0))
             continue

@@ -29,7 +29,8 @@ from typing import Any
 
 FORMAT = "tsa-bench/model"
 FORMAT_VERSION = "1.0"
-MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing")
+MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing", "twist-heat-additive",
+               "twist-heat-coupled")
 #: Largest Preisach discretisation read back (the thesis uses M = 20).
 MAX_PREISACH_LEVELS = 200
 #: Longest list parameter read back.

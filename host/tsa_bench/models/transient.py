@@ -64,34 +64,60 @@ def decay_series(t_s: np.ndarray, motor_moving: np.ndarray, b1: float, b2: float
     return out
 
 
+#: Above this many matrix entries (samples x (curves + 2)) the curve levels are taken out
+#: first; below, the one-column-per-curve problem is solved as it stands.
+DENSE_MAX_ENTRIES = 4_000_000
+
+
 def fit_decay(curves: list[tuple[np.ndarray, np.ndarray]], eps_s: float = EPS_S) -> tuple[float, float, np.ndarray]:
     """Fit shared ``b1, b2 <= 0`` and per-curve ``y_s`` to curves ``(dt_s, y)``; NaNs skipped.
 
     Returns ``(b1, b2, y_s)`` with ``y_s`` one value per curve (NaN for a curve with no data).
+    A long run (thousands of holds) would make the one-column-per-curve matrix grow as
+    samples x curves; there the unbounded levels are taken out first (same solution, time
+    and memory linear in samples). Small problems keep the direct form, whose results the
+    calibrated presets and thesis comparisons were made with (the downstream nonconvex
+    fits notice differences of 1e-12 in the levels).
     """
     if not curves:
         raise ValueError("no transient (hold) curves to fit")
-    rows, cols, yy = [], [], []
     m = len(curves)
+    lgs, ys, ids = [], [], []
     for i, (dt, y) in enumerate(curves):
         dt = np.asarray(dt, dtype=float)
         y = np.asarray(y, dtype=float)
         ok = np.isfinite(y)
-        lg = np.log(dt[ok] + eps_s)
-        block = np.zeros((ok.sum(), m + 2))
-        block[:, 0] = lg * lg
-        block[:, 1] = lg
-        block[:, 2 + i] = 1.0
-        rows.append(block)
-        yy.append(y[ok])
-    a = np.vstack(rows)
-    b = np.concatenate(yy)
+        lgs.append(np.log(dt[ok] + eps_s))
+        ys.append(y[ok])
+        ids.append(np.full(int(ok.sum()), i))
+    lg, b, gid = np.concatenate(lgs), np.concatenate(ys), np.concatenate(ids)
     if len(b) < m + 2:
         raise ValueError(f"too few samples ({len(b)}) on {m} hold curves to fit the transient decay")
-    lo = np.r_[-np.inf, -np.inf, np.full(m, -np.inf)]
+    solve = _decay_dense if len(b) * (m + 2) <= DENSE_MAX_ENTRIES else _decay_centred
+    b1, b2, level = solve(lg, b, gid, m)
+    level[np.bincount(gid, minlength=m) == 0] = np.nan
+    return b1, b2, level
+
+
+def _decay_dense(lg: np.ndarray, y: np.ndarray, gid: np.ndarray, m: int) -> tuple[float, float, np.ndarray]:
+    """Columns ``lg^2, lg`` and one level column per curve; bounded ``b1, b2 <= 0``."""
+    a = np.zeros((len(y), m + 2))
+    a[:, 0], a[:, 1] = lg * lg, lg
+    a[np.arange(len(y)), 2 + gid] = 1.0
     hi = np.r_[0.0, 0.0, np.full(m, np.inf)]
-    sol = lsq_linear(a, b, bounds=(lo, hi), method="bvls")
-    ys = sol.x[2:].copy()
-    counts = np.array([np.isfinite(np.asarray(y, dtype=float)).sum() for _, y in curves])
-    ys[counts == 0] = np.nan
-    return float(sol.x[0]), float(sol.x[1]), ys
+    x = lsq_linear(a, y, bounds=(np.full(m + 2, -np.inf), hi), method="bvls").x
+    return float(x[0]), float(x[1]), x[2:].copy()
+
+
+def _decay_centred(lg: np.ndarray, y: np.ndarray, gid: np.ndarray, m: int) -> tuple[float, float, np.ndarray]:
+    """The same problem with each curve's mean removed from data and regressors (the
+    levels are unbounded, so this is exact), then the levels from the means."""
+    safe = np.maximum(np.bincount(gid, minlength=m), 1)
+
+    def centred(v: np.ndarray) -> np.ndarray:
+        return v - (np.bincount(gid, weights=v, minlength=m) / safe)[gid]
+
+    a = np.column_stack([centred(lg * lg), centred(lg)])
+    sol = lsq_linear(a, centred(y), bounds=([-np.inf, -np.inf], [0.0, 0.0]), method="bvls")
+    b1, b2 = float(sol.x[0]), float(sol.x[1])
+    return b1, b2, np.bincount(gid, weights=y - b1 * lg * lg - b2 * lg, minlength=m) / safe

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 
 @dataclass(frozen=True)
 class TrapezoidProfile:
-    """Closed-form trapezoidal move. ``rate`` and ``accel`` must be > 0."""
+    """Closed-form trapezoidal move. ``rate`` and ``accel`` must be > 0. The derived
+    quantities (peak rate, ramp and cruise times) are computed once, on first use."""
 
     distance: float
     rate: float
@@ -25,28 +27,28 @@ class TrapezoidProfile:
         if not (self.rate > 0 and self.accel > 0):
             raise ValueError(f"rate and accel must be > 0, got rate={self.rate}, accel={self.accel}")
 
-    @property
+    @cached_property
     def _abs(self) -> float:
         return abs(self.distance)
 
-    @property
+    @cached_property
     def peak_rate(self) -> float:
         """Highest speed reached (unit/s): ``rate`` or less for a triangular move."""
         return min(self.rate, math.sqrt(self._abs * self.accel))
 
-    @property
+    @cached_property
     def accel_time(self) -> float:
         """Duration of the acceleration ramp (s); the deceleration ramp is as long."""
         return self.peak_rate / self.accel
 
-    @property
+    @cached_property
     def cruise_time(self) -> float:
         """Duration at constant speed (s); zero for a triangular move."""
         v = self.peak_rate
         ramp_distance = v * v / self.accel  # both ramps together
         return max(0.0, (self._abs - ramp_distance) / v) if v > 0 else 0.0
 
-    @property
+    @cached_property
     def duration(self) -> float:
         """Total move time (s)."""
         return 2.0 * self.accel_time + self.cruise_time

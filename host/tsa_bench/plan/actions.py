@@ -75,6 +75,23 @@ class SetHeater:
 
 
 @dataclass(frozen=True)
+class HeaterLevel(SetHeater):
+    """A heater change that belongs to a combined step (``step``, e.g. ``twist_heat``): the level
+    set just before sub-move ``sub_move`` (1-based, of ``sub_moves``) to ``target_turns``, or,
+    with ``sub_move`` 0 and ``target_turns`` None, the level once the last sub-move is done.
+    Runs as any :class:`SetHeater` (kind ``heater``); its parameters say where it belongs."""
+
+    step: str = "twist_heat"
+    sub_move: int = 0
+    sub_moves: int = 1
+    target_turns: float | None = None
+
+    def params(self) -> dict[str, Any]:
+        return {"voltage_V": self.voltage_V, "step": self.step, "sub_move": self.sub_move,
+                "sub_moves": self.sub_moves, "sub_move_target_turns": self.target_turns}
+
+
+@dataclass(frozen=True)
 class SetSampling:
     """Change the acquisition period to ``period_s`` seconds."""
 
@@ -146,7 +163,7 @@ class TrackLength:
         return sum(self.timeout_s + h for _, h in self.targets)
 
 
-Action: TypeAlias = Move | Hold | Settle | SetHeater | SetSampling | Prompt | TrackLength
+Action: TypeAlias = Move | Hold | Settle | SetHeater | HeaterLevel | SetSampling | Prompt | TrackLength
 
 #: All segment kinds, in a stable display order.
 KINDS: tuple[str, ...] = ("move", "hold", "settle", "heater", "sampling", "prompt", "track_length")

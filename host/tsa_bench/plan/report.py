@@ -22,6 +22,15 @@ def _bound(x: float | None, unbounded: str) -> str:
     return unbounded if x is None else f"{x:g}"
 
 
+def _part_of(a: dict) -> str:
+    """Where a heater level of a combined step (twist_heat) belongs, or ''."""
+    if "step" not in a:
+        return ""
+    if a["sub_move"]:
+        return f" ({a['step']}: during sub-move {a['sub_move']}/{a['sub_moves']} to {a['sub_move_target_turns']:g} turns)"
+    return f" ({a['step']}: after its {a['sub_moves']} sub-moves)"
+
+
 def describe_segment(seg: Segment) -> str:
     """One line such as ``#12  move   target 17 turns @ 3.33 turns/s, 50 turns/s^2  (cycle 0, lifetime.yaml:31)``."""
     a = seg.params()
@@ -34,7 +43,7 @@ def describe_segment(seg: Segment) -> str:
                                     (("max_dR_dt_ohm_per_s", "|dR/dt|", "ohm/s"),
                                      ("max_dL_dt_mm_per_s", "|dL/dt|", "mm/s")) if a[k] is not None)
                           + f"; {a['min_duration_s']:g} .. {a['max_duration_s']:g} s",
-        "heater": lambda: f"{a['voltage_V']:g} V",
+        "heater": lambda: f"{a['voltage_V']:g} V" + _part_of(a),
         "sampling": lambda: f"period {a['period_s']:g} s",
         "prompt": lambda: repr(a["text"]) + ("" if a["load_g"] is None else f", load {a['load_g']:g} g"),
         "track_length": lambda: "to " + ", ".join(f"{t:g} mm (hold {h:g} s)" for t, h in zip(a["targets_mm"], a["hold_s"]))

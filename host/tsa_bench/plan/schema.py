@@ -75,6 +75,15 @@ STEPS: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
                   "values": {"type": "array", "minItems": 1, "maxItems": MAX_FOR_EACH_VALUES,
                              "items": {"type": ["number", "string", "boolean"]}},
                   "steps": {"$ref": "#/$defs/steps"}}),
+    "twist_heat": (
+        "twist and heat at once: before each sub-move the heater is set to its voltage (docs/twist-heat.md)",
+        ("targets_turns", "voltages_V"),
+        {"targets_turns": {"type": "array", "minItems": 1, "items": _num("absolute sub-move target, turns")},
+         "voltages_V": {"type": "array", "minItems": 1, "items": _num("heater voltage during that sub-move, V",
+                                                                      minimum=0)},
+         "hold_s": _num("dwell after each sub-move, s (default 0)", minimum=0, maximum=MAX_HOLD_S),
+         "end_voltage_V": _num("heater voltage after the last sub-move, V (default: kept)", minimum=0),
+         "rate_turns_per_s": _RATE, "accel_turns_per_s2": _ACCEL}),
     "track_length": (
         "closed-loop length control from resistance alone (self-sensing model; docs/control.md)", ("model",),
         {"model": _text("self-sensing model JSON from `tsa-bench fit self-sensing` (relative to the protocol)"),

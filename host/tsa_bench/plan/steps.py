@@ -13,6 +13,8 @@ rotation_sequence   ``targets_turns`` (absolute), ``hold_s`` (>= 0, after each),
 voltage_steps       ``voltages_V``, ``hold_s`` (>= 0, after each voltage)
 repeat              ``count`` (integer >= 1), ``steps`` (nestable)
 track_length        closed-loop length control from resistance (:mod:`tsa_bench.plan.tracking_step`)
+twist_heat          twist and heat at once: ``targets_turns`` and one ``voltages_V`` per sub-move,
+                    optional ``hold_s``, ``end_voltage_V``, rate/accel (:mod:`tsa_bench.plan.twist_heat_step`)
 hold_until_settled  ``max_duration_s`` (> 0, at most 7 days), optional ``window_s`` (default 30,
                     at most max_duration_s), ``min_duration_s`` (default window_s),
                     ``max_dR_dt_ohm_per_s``, ``max_dL_dt_mm_per_s`` (> 0; at least one)
@@ -42,6 +44,7 @@ from yaml import MappingNode, Node, ScalarNode
 from tsa_bench.plan.actions import Action, Hold, Prompt, SetHeater, SetSampling, Settle
 from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.tracking_step import parse_track_length
+from tsa_bench.plan.twist_heat_step import parse_twist_heat
 from tsa_bench.plan.variables import NAME, UnknownVariable, Value, substitute
 from tsa_bench.plan.yamlnodes import (
     BOOL_TAG, EXPONENT_FLOAT, FLOAT_TAG, INT_TAG, NULL_TAG, STR_TAG, Reader, describe,
@@ -64,9 +67,11 @@ MAX_PARSED_STEPS = 100_000
 STEP_KINDS: tuple[str, ...] = (
     "move_to", "move_by", "hold", "heater", "sampling", "prompt",
     "rotation_sequence", "voltage_steps", "repeat", "hold_until_settled", "for_each", "track_length",
+    "twist_heat",
 )
 _MOTION_KEYS = ("rate_turns_per_s", "accel_turns_per_s2")
-_MOVING_KINDS = frozenset({"move_to", "move_by", "rotation_sequence", "repeat", "for_each", "track_length"})
+_MOVING_KINDS = frozenset({"move_to", "move_by", "rotation_sequence", "repeat", "for_each", "track_length",
+                            "twist_heat"})
 # Stand-in rate/accel for a move whose own rate/accel was invalid: its target is still
 # range-checked, and a protocol with errors never becomes a Plan, so it is never used.
 _PLACEHOLDER_MOTION = (1.0, 1.0)
@@ -155,6 +160,7 @@ class StepParser:
             "hold_until_settled": self._hold_until_settled,
             "for_each": self._for_each,
             "track_length": lambda node, field, source, depth: parse_track_length(self, node, field, source),
+            "twist_heat": lambda node, field, source, depth: parse_twist_heat(self, node, field, source),
         }
 
     # ---------------------------------------------------------------- structure

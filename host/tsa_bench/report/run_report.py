@@ -23,6 +23,7 @@ from tsa_bench.report.control_figures import fig_tracking, has_tracking
 from tsa_bench.report.extra_figures import extra_columns, fig_extras, fig_extras_xy
 from tsa_bench.report.fig_common import DPI, FORMATS, Figure, finite_any_col
 from tsa_bench.report.html import write_index
+from tsa_bench.report.twist_heat_figures import fig_twist_heat, heated_twists
 from tsa_bench.report.run_analysis import cycle_table, motor_stops, plateaus, span, stiffness_points
 from tsa_bench.store import RunData, read_run
 
@@ -32,6 +33,7 @@ KINDS: dict[str, tuple[Callable[[RunData, Path], str | None], str]] = {
     "stiffness": (rf.fig_stiffness, "Fig. 2.4"),
     "loops": (rf.fig_loops, "Fig. 2.5(b)-(c)"),
     "voltage": (rf.fig_voltage, "Fig. 2.6(a)-(c)"),
+    "twist_heat": (fig_twist_heat, "-- (thesis 5.2.2: twisting and heating together; Fig. 2.6 heated at one twist)"),
     "resistance_length": (rf.fig_resistance_length, "Fig. 2.7(c)-(f)"),
     "transient": (rf.fig_transient, "Fig. 2.8(a)-(b)"),
     "drift": (rf.fig_drift, "Fig. 2.8(d)"),
@@ -73,6 +75,7 @@ def select_figures(run: RunData) -> tuple[list[str], dict[str, str]]:
                       "needs rests at one twist level under no load and at least two other loads"),
         "loops": (twisted and has_l, "needs the twist to change and length to be measured"),
         "voltage": (len(volt_levels) >= 2 and has_l, "needs rests at two or more heater voltages"),
+        "twist_heat": (has_l and len(heated_twists(run)) >= 2, "needs rests with the heater on at two or more twists"),
         "resistance_length": (twisted and has_r and has_l and len({round(p.turns, 6) for p in rl_rests}) >= 3,
                               "needs rests at 3 or more twist levels with resistance and length measured"),
         "transient": (has_r and len(stops) >= 3, "needs at least 3 rests of 2 s or more after a move, "

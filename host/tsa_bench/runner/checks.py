@@ -14,11 +14,12 @@ def check_plan_against_device(plan: Plan, ident: msg.Identity) -> None:
     """Refuse a plan the device would refuse, before anything moves."""
     spt = ident.steps_per_turn
     problems = []
-    lo, hi = plan.summary().twist_range_turns
+    summary = plan.summary()      # one pass over the segments, not one per check
+    lo, hi = summary.twist_range_turns
     if round(hi * spt) > ident.max_twist_steps or round(lo * spt) < ident.min_twist_steps:
         problems.append(f"twist range {lo:g}..{hi:g} turns exceeds the device's "
                         f"{ident.min_twist_steps / spt:g}..{ident.max_twist_steps / spt:g} turns")
-    vmax = plan.summary().voltage_range_V[1]
+    vmax = summary.voltage_range_V[1]
     if round(vmax * 1000) > ident.max_heater_mV:
         problems.append(f"heater {vmax:g} V exceeds the device's {ident.max_heater_mV / 1000:g} V")
     for seg in plan.segments:
@@ -27,7 +28,7 @@ def check_plan_against_device(plan: Plan, ident: msg.Identity) -> None:
                                     or round(a.accel_turns_per_s2 * spt) > ident.max_accel_steps_per_s2):
             problems.append(f"{seg.source}: rate/acceleration beyond the device's maximum")
             break
-    pmin = plan.summary().sampling_period_range_s[0]
+    pmin = summary.sampling_period_range_s[0]
     if 0 < round(pmin * 1e6) < ident.min_sample_period_us:
         problems.append(f"sampling period {pmin * 1000:g} ms is shorter than the device's "
                         f"{ident.min_sample_period_us / 1000:g} ms")

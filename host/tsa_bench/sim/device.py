@@ -92,6 +92,7 @@ def frame_bytes(payload_bytes: int) -> int:
     body = payload_bytes + 6
     return body + 1 + body // 254 + 1
 _STATE = msg.DeviceState
+_FRAME_SIZES: dict[type, int] = {}   # message class -> its frame's size on the wire
 
 
 class SimDevice:
@@ -231,14 +232,23 @@ class SimDevice:
         limit = self._produced + max_output_bytes
         urgent_before = self._urgent_sent
         release_s = self.limits.fault_release_s
+        inf = math.inf
         while self._urgent_sent == urgent_before and self._produced < limit:
             t_seg = ex.end_s
             t_smp = self._next_sample_s
-            armed = self.watchdog_armed and not self.fault
-            t_wd = self._last_host_s + self._watchdog_s if armed else math.inf
-            releasing = self.fault and not self.motor_released and release_s > 0 and not ex.stopping
-            t_rel = self._fault_since_s + release_s if releasing else math.inf
-            t = min(t_seg, t_smp, t_wd, t_rel)
+            fault = self.fault
+            if fault:
+                t_wd = inf
+                releasing = not self.motor_released and release_s > 0 and not ex.stopping
+                t_rel = self._fault_since_s + release_s if releasing else inf
+            else:   # the watchdog runs while watchdog_armed (tested cheapest first)
+                t_wd = self._last_host_s + self._watchdog_s if self._period_us > 0 or self.active else inf
+                t_rel = inf
+            t = t_seg if t_seg < t_smp else t_smp
+            if t_wd < t:
+                t = t_wd
+            if t_rel < t:
+                t = t_rel
             if t > end or t == math.inf:
                 if end != math.inf:
                     self.now_s = end
@@ -268,7 +278,9 @@ class SimDevice:
             self._out += data
             self._produced += len(data)
         else:
-            n = frame_bytes(msg.SPEC_BY_CLASS[type(message)].struct.size)
+            n = _FRAME_SIZES.get(type(message))
+            if n is None:
+                n = _FRAME_SIZES[type(message)] = frame_bytes(msg.SPEC_BY_CLASS[type(message)].struct.size)
             self._frames.append((Frame(self._seq, message), n))
             self._produced += n
         self._seq = (self._seq + 1) & 0xFFFF
@@ -283,9 +295,8 @@ class SimDevice:
         ex = self.executor
         steps, moving = ex.position_at(t)
         heater_mV = ex.heater_mV
-        reading = self.plant.sample(t, steps * self._turns_per_step, heater_mV * 1e-3, moving)
-        position_raw, resistance_raw, flags = self.sensors.convert(
-            reading.length_mm, reading.resistance_ohm, heater_mV)
+        length_mm, resistance_ohm = self.plant.sample(t, steps * self._turns_per_step, heater_mV * 1e-3, moving)
+        position_raw, resistance_raw, flags = self.sensors.convert(length_mm, resistance_ohm, heater_mV)
         timing = self.resistance_timing
         if heater_mV > 0 or ex.heater_switch_ons != self._heater_seen:
             timing.sense_off()       # the heater came on since the last sample: current off

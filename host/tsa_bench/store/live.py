@@ -12,7 +12,10 @@ file stays the only record, and :class:`LiveSidecar`, a run consumer placed AFTE
   (``version``, ``record_dtype``, ``record_size``, ``run_file``, ``plan_name``,
   ``n_segments``, ``estimated_duration_s``, ``pid``, ``host``, ``started``);
 * then fixed-size little-endian records (:data:`RECORD`: every sample column of the run
-  file, raw counts included, so a killed run's last samples can be recovered from it
+  file, raw counts included, followed by the run's extra numeric columns such as a
+  ``track_length`` controller's estimate, target and state, in the order of
+  ``RunStart.extra_columns``; the header's ``record_dtype`` gives the layout), so a killed
+  run's last samples can be recovered from it
   by ``tsa-bench run --resume``), append-only, flushed to the
   operating system at least every ``flush_interval_s`` (0.1 s), at segment ends when
   samples were written since the last flush (the runner hands samples over in blocks, at
@@ -49,16 +52,35 @@ from tsa_bench.documents import DocumentError, parse_json
 from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 MAGIC = b"TSALIVE1"
-VERSION = 2
+VERSION = 3
+#: Versions this reader understands: 2 had exactly :data:`RECORD`; 3 may append extra columns.
+READ_VERSIONS = (2, 3)
 RECORD = np.dtype([("kind", "u1"), ("motor_moving", "u1"), ("adc_flags", "u1"),
                    ("segment", "<i4"), ("counter", "<u4"), ("step_position", "<i4"), ("resistance_raw", "<i4"),
                    ("position_raw", "<i2"), ("t", "<f8"), ("turns", "<f8"), ("length", "<f8"), ("resistance", "<f8"),
                    ("heater_voltage", "<f8"), ("load", "<f8")])
 #: Record fields that are sample columns of the run file.
 SAMPLE_FIELDS = RECORD.names[1:]
+#: Numeric types an extra column may have in a sidecar record (little-endian or byte-sized).
+EXTRA_TYPES = frozenset({"|u1", "|i1", "<u2", "<i2", "<u4", "<i4", "<u8", "<i8", "<f4", "<f8"})
+MAX_EXTRA_COLUMNS = 64
 END_KINDS = {"success": 1, "aborted": 2, "failed": 3}
 END_NAMES = {v: k for k, v in END_KINDS.items()}
 MAX_HEADER_BYTES = 64 * 1024
+
+
+def record_dtype(extra_columns: dict[str, tuple[str, str, dict[str, str]]] | None = None) -> np.dtype:
+    """:data:`RECORD` followed by the run's extra numeric columns (name -> (dtype, units, attrs)).
+
+    A column whose type has no fixed little-endian form (strings, objects) is left out:
+    the run file keeps it; the sidecar only carries numbers.
+    """
+    fields = list(RECORD.descr)
+    for name, spec in (extra_columns or {}).items():
+        dt = np.dtype(spec[0]).newbyteorder("<") if np.dtype(spec[0]).itemsize > 1 else np.dtype(spec[0])
+        if dt.str in EXTRA_TYPES and name not in RECORD.names and len(fields) < len(RECORD.descr) + MAX_EXTRA_COLUMNS:
+            fields.append((name, dt.str))
+    return np.dtype(fields)
 
 
 def sidecar_path(run_path: str | Path) -> Path:
@@ -79,6 +101,7 @@ class LiveSidecar:
         self._last_flush = 0.0
         self._dirty = False      # written since the last flush
         self.records = 0
+        self.dtype = RECORD
 
     def _fail(self, exc: BaseException) -> None:
         print(f"warning: live view disabled, cannot write {self.path}: {exc} (the run file is not affected)",
@@ -91,7 +114,9 @@ class LiveSidecar:
         self._f = None
 
     def on_start(self, start: RunStart) -> None:
-        header = {"version": VERSION, "record_dtype": [list(d) for d in RECORD.descr], "record_size": RECORD.itemsize,
+        self.dtype = record_dtype(start.extra_columns)
+        header = {"version": VERSION, "record_dtype": [list(d) for d in self.dtype.descr],
+                  "record_size": self.dtype.itemsize,
                   "run_file": self.run_path.name, "plan_name": start.plan_name, "n_segments": start.n_segments,
                   "estimated_duration_s": start.estimated_duration_s, "pid": os.getpid(),
                   "host": socket.gethostname(), "started": dt.datetime.now().astimezone().isoformat(timespec="seconds")}
@@ -125,19 +150,20 @@ class LiveSidecar:
 
     def on_samples(self, block: SampleBlock) -> None:
         c = block.columns
-        rec = np.zeros(len(block), dtype=RECORD)
-        for name in SAMPLE_FIELDS:
-            rec[name] = c[name]
+        rec = np.zeros(len(block), dtype=self.dtype)
+        for name in self.dtype.names[1:]:
+            if name in c:
+                rec[name] = c[name]
         self._write(rec)
 
     def on_segment(self, segment: SegmentRecord) -> None:
-        self._write(np.zeros(0, dtype=RECORD), force=True)  # a flush only when samples are waiting
+        self._write(np.zeros(0, dtype=self.dtype), force=True)  # a flush only when samples are waiting
 
     def on_event(self, event: EventRecord) -> None:
         pass
 
     def on_stop(self, stop: RunStop) -> None:
-        end = np.zeros(1, dtype=RECORD)
+        end = np.zeros(1, dtype=self.dtype)
         end["kind"] = END_KINDS.get(stop.exit_status, 3)
         end["t"] = stop.t_end
         end["counter"] = stop.samples
@@ -178,7 +204,6 @@ class LiveTail:
         except LiveFormatError:
             self._f.close()
             raise
-        self.dtype = RECORD
         self._offset = 12 + self._header_len
         self.end_kind: int | None = None
         self.end_record: np.void | None = None
@@ -197,11 +222,6 @@ class LiveTail:
             raise LiveFormatError(f"{self.path}: unreadable sidecar header ({exc})") from None
         if not isinstance(header, dict):
             raise LiveFormatError(f"{self.path}: unreadable sidecar header (truncated or not a JSON object)")
-        layout = [list(d) for d in RECORD.descr]
-        if header.get("version") != VERSION or header.get("record_dtype") != layout \
-                or header.get("record_size") != RECORD.itemsize:
-            raise LiveFormatError(f"{self.path}: sidecar version {header.get('version')!r} with another record "
-                                  f"layout; this tsa-bench reads version {VERSION}")
         for key, kind in (("n_segments", int), ("pid", int), ("estimated_duration_s", (int, float))):
             if key in header and (isinstance(header[key], bool) or not isinstance(header[key], kind)):
                 raise LiveFormatError(f"{self.path}: sidecar header field {key!r} is {header[key]!r}")
@@ -209,7 +229,31 @@ class LiveTail:
             if key in header and not isinstance(header[key], str):
                 header[key] = str(header[key])
         self._header_len = n
+        self.dtype = self._layout(header)
         return header
+
+    def _layout(self, header: dict[str, Any]) -> np.dtype:
+        """The record type the header declares: :data:`RECORD`, then (version 3) numeric extras."""
+        version, layout = header.get("version"), header.get("record_dtype")
+        base = [list(d) for d in RECORD.descr]
+        wrong = LiveFormatError(f"{self.path}: sidecar version {version!r} with another record layout; "
+                                f"this tsa-bench reads versions {', '.join(map(str, READ_VERSIONS))}")
+        if version not in READ_VERSIONS or not isinstance(layout, list) or layout[:len(base)] != base:
+            raise wrong
+        extra = layout[len(base):]
+        if (version == 2 and extra) or len(extra) > MAX_EXTRA_COLUMNS:
+            raise wrong
+        names = set(RECORD.names)
+        for item in extra:
+            if not (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and item[0].isidentifier()
+                    and item[0] not in names and item[1] in EXTRA_TYPES):
+                raise LiveFormatError(f"{self.path}: sidecar record field {item!r} is not a numeric column")
+            names.add(item[0])
+        dtype = np.dtype([(name, kind) for name, kind in RECORD.descr] + [(a, b) for a, b in extra])
+        if header.get("record_size") != dtype.itemsize:
+            raise LiveFormatError(f"{self.path}: sidecar record_size {header.get('record_size')!r} does not match "
+                                  f"its layout ({dtype.itemsize} bytes)")
+        return dtype
 
     @property
     def ended(self) -> str | None:

@@ -5,7 +5,7 @@ samples up to the writer's last flush, and its live sidecar ``RUN.h5.live``
 (:mod:`tsa_bench.store.live`), which holds every sample up to the kill, raw counts
 included. :func:`recover_killed_run` appends to the run file the sidecar's samples
 whose counter comes after the last stored one (first cutting every column to the rows
-all columns have), records a ``recovered`` event, sets ``exit_status`` "failed" with a
+all columns have; extra columns such as a controller's estimate included), records a ``recovered`` event, sets ``exit_status`` "failed" with a
 reason saying so, and removes the sidecar (its samples are now in the file). It refuses
 (:class:`RecoveryError`) while the process that wrote the sidecar is still alive on
 this host, and never touches a file whose status is not "running".
@@ -19,7 +19,7 @@ import h5py
 import numpy as np
 
 from tsa_bench.store.hdf5 import EVENT_DTYPE
-from tsa_bench.store.live import SAMPLE_FIELDS, LiveFormatError, LiveTail, sidecar_path
+from tsa_bench.store.live import RECORD, SAMPLE_FIELDS, LiveFormatError, LiveTail, sidecar_path
 
 
 class RecoveryError(ValueError):
@@ -31,7 +31,7 @@ def recover_killed_run(run_path: str | Path) -> int:
     path = Path(run_path)
     side = sidecar_path(path)
     tail = None
-    records = np.zeros(0)
+    records = np.zeros(0, dtype=RECORD)
     if side.is_file():
         try:
             tail = LiveTail(side)
@@ -62,11 +62,12 @@ def recover_killed_run(run_path: str | Path) -> int:
         last = int(counters[-1]) if len(counters) else None
         new = records if last is None else records[records["counter"].astype(np.int64) > last]
         k = len(new)
+        carried = set(SAMPLE_FIELDS) | set(new.dtype.names or ()) - {"kind"}   # extras: a sidecar of version 3
         if k:
             for name in columns:   # columns the sidecar lacks get their fill value (NaN / 0)
                 ds = g[name]
                 ds.resize((n + k,))
-                if name in SAMPLE_FIELDS:
+                if name in carried:
                     ds[n:] = new[name].astype(ds.dtype)
         t_end = float(new["t"][-1]) if k else (float(g["t"][n - 1]) if n else 0.0)
         detail = (f"{k} samples after the last flush recovered from the live sidecar {side.name}" if tail

@@ -43,7 +43,8 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_
 
 from tsa_bench.bench.config import BenchConfig, load_bench
 from tsa_bench.protocol.codec import Frame, MessageDecoder, encode
-from tsa_bench.sim.device import SimDevice
+from tsa_bench.protocol.catalogue import SPEC_BY_CLASS
+from tsa_bench.sim.device import SimDevice, frame_bytes
 
 __all__ = ["Serial", "SimUrl", "parse_sim_url", "Pacer", "quantum_s"]
 
@@ -144,6 +145,7 @@ class Serial(SerialBase):
         self._rx: deque[tuple[Frame | bytes, int]] = deque()
         self._rx_bytes = 0
         self._head_read = 0
+        self._raw_pending = 0                    # raw-bytes items in _rx
         self._bytes_decoder = MessageDecoder()   # for raw bytes among frames (the boot delimiter)
         super().__init__(*args, **kwargs)
 
@@ -158,7 +160,7 @@ class Serial(SerialBase):
         self._pacer = Pacer(self.device, self.sim_url.speed)
         self.device.boot()
         self._rx.clear()
-        self._rx_bytes = self._head_read = 0
+        self._rx_bytes = self._head_read = self._raw_pending = 0
         self._collect()
         self.is_open = True
 
@@ -190,9 +192,11 @@ class Serial(SerialBase):
 
     def _collect(self) -> None:
         assert self.device is not None
-        for item in self.device.take_frames():
-            self._rx.append(item)
-            self._rx_bytes += item[1]
+        items = self.device.take_frames()
+        if items:
+            self._rx.extend(items)
+            self._rx_bytes += sum([n for _, n in items])
+            self._raw_pending += sum([1 for f, _ in items if type(f) is bytes])
 
     def _pump(self, max_bytes: int, deadline: float | None) -> None:
         """Advance the device by at most one quantum until it says something.
@@ -255,7 +259,8 @@ class Serial(SerialBase):
         if self._head_read == self._rx[0][1]:
             self._rx_bytes -= self._head_read
             self._head_read = 0
-            self._rx.popleft()
+            if isinstance(self._rx.popleft()[0], bytes):
+                self._raw_pending -= 1
 
     def read_frames(self, size: int = 1) -> list[Frame]:
         """Like :meth:`read` (same waiting, same ``size`` in wire bytes), but returns the
@@ -264,6 +269,12 @@ class Serial(SerialBase):
         if size <= 0:
             return []
         self._wait_for_output(size)
+        rx = self._rx
+        if self._head_read == 0 and self._rx_bytes <= size and not self._raw_pending:
+            out = [item for item, _ in rx]    # everything fits: all frames, none in part
+            rx.clear()
+            self._rx_bytes = 0
+            return out
         out: list[Frame] = []
         budget = size
         while self._rx and budget > 0:
@@ -288,16 +299,17 @@ class Serial(SerialBase):
         return len(data)
 
     def write_frame(self, data: bytes, seq: int, message) -> int:
-        """Deliver ``message`` (whose frame ``data`` is, with ``seq``) without decoding it."""
+        """Deliver ``message`` (whose frame ``data`` is, with ``seq``; ``data`` may be empty when
+        the caller did not encode it) without decoding it; return the frame's size on the wire."""
         dev = self._check_open()
         dev.receive_frame(seq, message)
         self._collect()
-        return len(data)
+        return len(data) or frame_bytes(SPEC_BY_CLASS[type(message)].struct.size)
 
     def reset_input_buffer(self) -> None:
         dev = self._check_open()
         self._rx.clear()
-        self._rx_bytes = self._head_read = 0
+        self._rx_bytes = self._head_read = self._raw_pending = 0
         self._bytes_decoder = MessageDecoder()
         dev.take_frames()
 
