@@ -45,6 +45,11 @@ def _h5(node: Any) -> Any:
 def _v73(path: Path) -> dict[str, Any]:
     import h5py
 
+    from tsa_bench.store.probe import check_hdf5_terminates
+
+    why = check_hdf5_terminates(path)
+    if why:
+        raise ImportFileError(f"{path}: {why}")
     try:
         with h5py.File(path, "r") as f:
             return {k: _h5(v) for k, v in f.items() if not k.startswith("#")}

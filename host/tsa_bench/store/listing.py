@@ -20,6 +20,7 @@ import numpy as np
 from tsa_bench.documents import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import FORMAT
 from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
+from tsa_bench.store.probe import check_hdf5_terminates
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,9 @@ def _one(path: Path) -> RunLine:
         return RunLine(path, "?", problem=exc.message)
     if _recording(path):
         return RunLine(path, "recording", problem="being recorded (tsa-bench watch shows it)")
+    why = check_hdf5_terminates(path)
+    if why:
+        return RunLine(path, "?", problem=why)
     try:
         with h5py.File(path, "r") as f:
             a = f.attrs

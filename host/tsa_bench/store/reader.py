@@ -43,6 +43,7 @@ import numpy as np
 
 from tsa_bench.documents import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import EVENT_DTYPE, FORMAT, SEGMENT_DTYPE, SEGMENT_ROW_DTYPE
+from tsa_bench.store.probe import check_hdf5_terminates
 
 #: Required sample columns and their units (docs/run-format.md).
 REQUIRED_COLUMNS: dict[str, str] = {
@@ -320,6 +321,9 @@ def read_run(path: str | Path) -> RunData:
         if "not found" in exc.message:
             raise RunFileError(f"{p}: no such file") from None
         raise RunFileError(str(exc)) from None
+    why = check_hdf5_terminates(p)
+    if why:
+        raise RunFileError(f"{p}: {why}")
     try:
         handle = h5py.File(p, "r")
     except Exception as exc:  # h5py reports a bad file with many exception types

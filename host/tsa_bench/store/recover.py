@@ -20,6 +20,7 @@ import numpy as np
 
 from tsa_bench.store.hdf5 import EVENT_DTYPE
 from tsa_bench.store.live import RECORD, SAMPLE_FIELDS, LiveFormatError, LiveTail, sidecar_path
+from tsa_bench.store.probe import check_hdf5_terminates
 
 
 class RecoveryError(ValueError):
@@ -44,6 +45,9 @@ def recover_killed_run(run_path: str | Path) -> int:
             records = tail.poll()
         finally:
             tail.close()
+    why = check_hdf5_terminates(path)
+    if why:
+        raise RecoveryError(f"{path}: {why}")
     try:
         f = h5py.File(path, "a")
     except OSError as exc:

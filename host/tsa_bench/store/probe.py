@@ -1,0 +1,156 @@
+"""Untrusted HDF5 files read first in a bounded child process.
+
+Why: a damaged HDF5 file (a few flipped bytes in a global heap, say) can make the HDF5
+library itself loop forever or allocate without bound inside one attribute read; no
+Python-level check can interrupt a C loop. So before a command opens a file it did not
+write, :func:`check_hdf5_terminates` forks a child that reads what the readers will read
+(every attribute, every dataset's type and shape, the small tables and strings in full,
+the first and last row of the long columns), under a memory limit, and waits at most
+``timeout_s``. The reads are deterministic: if the child finishes, the parent's own reads
+of the same objects finish too; if it hangs, runs out of memory or crashes, the file is
+refused with a message saying so, and nothing else is touched.
+
+Contract: returns None when the child finished (whatever it found: ordinary errors, like a
+missing dataset, are left to the caller's reader and its messages); otherwise the reason,
+one line. Without ``os.fork`` (Windows) it returns None at once.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+#: How long the child may take (s); reading a run file's metadata takes milliseconds.
+TIMEOUT_S = 20.0
+#: Address-space limit of the child (bytes): a damaged heap must not take the machine.
+MEMORY_LIMIT_BYTES = 4 << 30
+#: Objects visited at most (groups and datasets); a run file has a few dozen.
+MAX_OBJECTS = 10_000
+#: A dataset smaller than this (bytes) is read whole; larger ones only at their ends.
+WHOLE_BYTES = 16 << 20
+
+_EXIT_DONE, _EXIT_MEMORY = 0, 3
+
+
+def _read_everything_small(path: Path) -> None:
+    import h5py
+    import numpy as np
+
+    with h5py.File(path, "r") as f:
+        seen = [0]
+
+        def attrs(obj: h5py.HLObject) -> None:
+            for name in obj.attrs:
+                obj.attrs[name]
+
+        def visit(_name: str, obj: h5py.HLObject) -> None:
+            seen[0] += 1
+            if seen[0] > MAX_OBJECTS:
+                raise StopIteration
+            attrs(obj)
+            if isinstance(obj, h5py.Dataset):
+                if obj.shape is None:
+                    return
+                if obj.ndim == 0 or obj.size * max(obj.dtype.itemsize, 1) <= WHOLE_BYTES:
+                    obj[()]
+                elif obj.size:
+                    first = (0,) * obj.ndim
+                    last = tuple(int(n) - 1 for n in obj.shape)
+                    obj[first], obj[last]
+                np.dtype(obj.dtype)
+
+        attrs(f)
+        try:
+            f.visititems(visit)
+        except StopIteration:
+            pass
+
+
+def _child(path: Path) -> None:
+    """In the forked child: read, then leave without running any parent cleanup."""
+    code = _EXIT_DONE
+    try:
+        import resource
+
+        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        limit = MEMORY_LIMIT_BYTES if hard == resource.RLIM_INFINITY else min(MEMORY_LIMIT_BYTES, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    except (ImportError, ValueError, OSError):
+        pass
+    try:
+        _read_everything_small(path)
+    except MemoryError:
+        code = _EXIT_MEMORY
+    except BaseException:   # an ordinary error: the caller's reader reports it in its own words
+        code = _EXIT_DONE
+    os._exit(code)
+
+
+def check_hdf5_terminates(path: str | Path, timeout_s: float | None = None) -> str | None:
+    """None if reading ``path``'s metadata finishes; else why not (module contract).
+
+    ``timeout_s`` defaults to :data:`TIMEOUT_S`.
+    """
+    if not hasattr(os, "fork"):
+        return None
+    timeout_s = TIMEOUT_S if timeout_s is None else timeout_s
+    p = Path(path)
+    if threading.active_count() > 1:
+        # another thread may hold h5py's or HDF5's lock at the fork and the child would wait
+        # on it for ever: a fresh interpreter instead (slower: it imports h5py)
+        return _in_new_interpreter(p, timeout_s)
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child leaves through os._exit
+        _child(p)
+    deadline = time.monotonic() + timeout_s
+    delay = 0.001
+    status = None
+    try:
+        while status is None:
+            done, st = os.waitpid(pid, os.WNOHANG)
+            if done:
+                status = st
+            elif time.monotonic() >= deadline:
+                return (f"damaged HDF5 file: reading its metadata did not finish in {timeout_s:g} s "
+                        "(the HDF5 library loops on it)")
+            else:
+                time.sleep(delay)
+                delay = min(delay * 2, 0.05)
+    finally:
+        if status is None:   # timed out, or Ctrl-C while waiting: never leave the child looping
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status):
+        return _verdict(-os.WTERMSIG(status))
+    return _verdict(os.WEXITSTATUS(status) if os.WIFEXITED(status) else _EXIT_DONE)
+
+
+def _verdict(code: int) -> str | None:
+    """The reason for a child's exit code (negative: killed by that signal)."""
+    if code < 0:
+        return f"damaged HDF5 file: the HDF5 library crashed reading it (signal {-code})"
+    if code == _EXIT_MEMORY:
+        return (f"damaged HDF5 file: reading its metadata needed more than {MEMORY_LIMIT_BYTES >> 30} GiB "
+                "(a corrupt size or heap)")
+    return None
+
+
+def _in_new_interpreter(path: Path, timeout_s: float) -> str | None:
+    try:
+        done = subprocess.run([sys.executable, "-m", "tsa_bench.store.probe", str(path)], timeout=timeout_s + 5,
+                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return (f"damaged HDF5 file: reading its metadata did not finish in {timeout_s:g} s "
+                "(the HDF5 library loops on it)")
+    except OSError:
+        return None
+    return _verdict(done.returncode)
+
+
+if __name__ == "__main__":
+    _child(Path(sys.argv[1]))

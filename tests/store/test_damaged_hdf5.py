@@ -1,0 +1,93 @@
+"""A run file damaged so that the HDF5 library itself loops is refused, not hung on."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+from click.testing import CliRunner
+
+from tests.runner.helpers import plan_from_text, run_plan
+from tsa_bench.cli import main
+from tsa_bench.store import RunFileError, read_run
+from tsa_bench.store import probe
+from tsa_bench.store.listing import list_runs
+
+PLAN = """name: short
+defaults: {rate_turns_per_s: 2, accel_turns_per_s2: 20}
+steps:
+  - move_to: {turns: 3}
+  - hold: {duration_s: 2}
+"""
+def _damage(src, dst):
+    """Flip the top bit of the size of the last object (the free space, index 0) of the
+    file's first global heap collection: HDF5 1.14 then loops on every read of a
+    variable-length string attribute (found by the mutation tests)."""
+    data = bytearray(src.read_bytes())
+    at = data.find(b"GCOL")   # "GCOL", version, 3 reserved, 8-byte collection size, objects
+    assert at >= 0, "a run file keeps its string attributes in a global heap"
+    (size,) = struct.unpack_from("<Q", data, at + 8)
+    obj = last = at + 16
+    while obj <= at + size - 16:     # object: index u16, refs u16, reserved u32, size u64, data
+        index, _, _, length = struct.unpack_from("<HHIQ", data, obj)
+        last = obj
+        if index == 0:
+            break
+        obj += 16 + (length + 7) // 8 * 8
+    data[last + 8] ^= 0x80
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("damaged")
+    stop, _, path = run_plan(plan_from_text(PLAN), d)
+    assert stop.exit_status == "success"
+    return path, _damage(path, d / "damaged.h5")
+
+
+@pytest.fixture
+def short_timeout(monkeypatch):
+    """A damaged file is given up on after 2 s instead of 20 (a good one takes milliseconds)."""
+    monkeypatch.setattr(probe, "TIMEOUT_S", 2.0)
+
+
+def test_a_good_file_passes_the_probe_and_is_read(files):
+    good, _ = files
+    assert probe.check_hdf5_terminates(good) is None
+    assert len(read_run(good)) > 10
+
+
+def test_the_probe_names_a_damaged_file(files, short_timeout):
+    why = probe.check_hdf5_terminates(files[1])
+    assert why is not None and why.startswith("damaged HDF5 file")
+
+
+def test_readers_refuse_it_with_the_file_and_the_reason(files, short_timeout):
+    good, bad = files
+    with pytest.raises(RunFileError, match=r"damaged\.h5: damaged HDF5 file"):
+        read_run(bad)
+    lines = {line.path.name: line for line in list_runs(bad.parent)}
+    assert "damaged HDF5 file" in (lines["damaged.h5"].problem or "")
+
+
+@pytest.mark.parametrize("command", [["info"], ["report"], ["export", "--csv"]])
+def test_commands_exit_2_naming_the_damage(files, command, short_timeout):
+    _, bad = files
+    before = bad.read_bytes()
+    res = CliRunner().invoke(main, [*command, str(bad)] if command[0] != "export" else ["export", str(bad), "--csv"])
+    assert res.exit_code == 2, res.output
+    assert "damaged HDF5 file" in res.output and "Traceback" not in res.output
+    assert bad.read_bytes() == before
+
+
+def test_with_other_threads_running_the_probe_uses_a_fresh_interpreter(files, short_timeout, monkeypatch):
+    """A fork while another thread holds h5py's lock would leave the child waiting for ever."""
+    import threading
+
+    monkeypatch.setattr(threading, "active_count", lambda: 3)
+    monkeypatch.setattr(probe.os, "fork", lambda: pytest.fail("forked with other threads running"))
+    good, bad = files
+    assert probe.check_hdf5_terminates(good) is None
+    assert probe.check_hdf5_terminates(bad).startswith("damaged HDF5 file")
