@@ -18,7 +18,7 @@ from tsa_bench.bench import load_bench
 from tsa_bench.device import BenchClient
 from tsa_bench.plan import load_plan_text
 from tsa_bench.runner import AutoOperator, Runner
-from tsa_bench.store import RunWriter
+from tsa_bench.store import RunWriter, read_run
 
 BENCH = load_bench(None)
 
@@ -73,9 +73,9 @@ steps:
         port.close()
     assert stop.exit_status == "success", stop.reason
     with h5py.File(tmp_path / "fw.h5") as f:
-        segs = f["segments"][()]
         turns, seg, heater = f["samples/turns"][()], f["samples/segment"][()], f["samples/heater_voltage"][()]
         resistance = f["samples/resistance"][()]
+    segs = read_run(tmp_path / "fw.h5").segments
     assert list(segs["index"]) == list(range(len(plan.segments))) and segs["completed"].all()
     holds = segs[segs["kind"] == b"hold"]
     assert np.allclose(holds["t_end"] - holds["t_start"], [2, 1, 1], atol=1e-3)

@@ -95,8 +95,8 @@ class Runner:
         self._t_start = np.full(n, np.nan)
         self._done = np.zeros(n, bool)
         self._done[:first] = True
-        self._parts = np.zeros(n, np.int64)        # device commands of each segment (a long hold: several)
-        self._parts_done = np.zeros(n, np.int64)   # SEGMENT_DONE events seen per segment
+        self._parts = np.zeros(n, np.int32)        # device commands of each segment (a long hold: several)
+        self._parts_done = np.zeros(n, np.int32)   # SEGMENT_DONE events seen per segment
         self._to_send: list[NamedTuple] = []       # commands of segment _next not yet accepted
         self._next = first              # next plan segment to send
         self._oldest = first            # oldest segment not yet done
