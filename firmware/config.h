@@ -33,11 +33,21 @@ static const uint8_t QUEUE_SLOTS = 16;
 static const uint16_t WATCHDOG_MS = 2000;
 // A half frame is dropped when the next byte takes longer than this.
 static const uint32_t FRAME_TIMEOUT_US = 20000UL;
-// Sampling period bounds (0 = off): the shortest period at which every slot gets its
-// sample while the motor runs at MAX_RATE_STEPS_PER_S (measured in simavr by
-// scripts/bench/simavr_figures.py: an ADS1115 conversion at 860 SPS plus the I2C
-// traffic at 400 kHz take ~1.6 ms, the sampler starts the next one on the grid).
-static const uint32_t MIN_SAMPLE_PERIOD_US = 3000UL;
+// Sampling periods (0 = off). The shortest is one ADS1115 conversion at 860 samples/s
+// (data sheet SBAS444, DR = 111: 1/860 s, rounded up); a shorter one is refused
+// too_fast_for_sensor, and one whose sample frames would need more than
+// SAMPLE_LINE_BUDGET_PERCENT of the line too_fast_for_line (core/sampling_limits.h).
+static const uint32_t ADS1115_SPS = 860UL;
+static const uint32_t MIN_SAMPLE_PERIOD_US = 1163UL;
+static_assert(MIN_SAMPLE_PERIOD_US == (1000000UL + ADS1115_SPS - 1) / ADS1115_SPS, "one conversion, rounded up");
+// From this period up, each sample is a single-shot conversion on the device's own grid
+// and goes out as one SAMPLE frame: the shortest period at which every slot gets its
+// sample while the motor runs at MAX_RATE_STEPS_PER_S (a conversion plus the I2C traffic
+// at 400 kHz take ~1.6 ms). Below it the ADS1115 converts continuously, paced by its
+// ALERT/RDY pin, and samples go out in SAMPLE_BLOCK frames.
+static const uint32_t SINGLE_SHOT_MIN_PERIOD_US = 3000UL;
+// Share of the line's bytes that sample frames may take (ACK, EVENT, QUEUE_STATUS need the rest).
+static const uint32_t SAMPLE_LINE_BUDGET_PERCENT = 80UL;
 
 // A latched fault holds the motor this long, then the motor is de-energized (position
 // unknown from then on), the sense current and sampling go off (EVENT motor_released).

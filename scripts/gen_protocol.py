@@ -45,6 +45,7 @@ ENUM_CLASS = {
     "fault": ("Fault", "IntEnum"),
     "boot_reason": ("BootReason", "IntEnum"),
     "adc_flags": ("AdcFlags", "IntFlag"),
+    "sample_flags": ("SampleFlags", "IntFlag"),
     "device_flags": ("DeviceFlags", "IntFlag"),
     "device_state": ("DeviceState", "IntFlag"),
 }
@@ -77,6 +78,17 @@ def load_catalogue(path: Path = CATALOGUE) -> dict:
                 raise CatalogueError(f"{where}: field {f['name']}: bad or duplicate name")
             seen.add(f["name"])
         size = struct.calcsize("<" + "".join(TYPES[f["type"]] for f in msg["fields"]))
+        entries = msg.get("entries")
+        if entries is not None:
+            counts = [f for f in msg["fields"] if f["name"] == entries["count_field"]]
+            if not counts or counts[0]["type"] != "u8":
+                raise CatalogueError(f"{where}: entries: count_field {entries['count_field']} is not a u8 field")
+            if msg["dir"] != "device":
+                raise CatalogueError(f"{where}: entries: only device messages may have a variable length")
+            for f in entries["fields"]:
+                if f["type"] not in TYPES or not IDENT.match(f["name"]):
+                    raise CatalogueError(f"{where}: entry field {f['name']}: bad name or type")
+            size += entries["max"] * struct.calcsize("<" + "".join(TYPES[f["type"]] for f in entries["fields"]))
         if size > cat["max_payload"]:
             raise CatalogueError(f"{where}: payload {size} B exceeds max_payload {cat['max_payload']}")
     for enum in cat["enums"]:
@@ -130,6 +142,14 @@ def render_python(cat: dict) -> str:
         out.append("")
     for msg in cat["messages"]:
         cls = camel(msg["name"])
+        entries = msg.get("entries")
+        if entries:
+            out += ["", f"class {cls}Entry(NamedTuple):",
+                    f'    """One entry of {msg["name"]} (up to {entries["max"]}, `{entries["count_field"]}` of them).', ""]
+            for f in entries["fields"]:
+                unit = f" [{f['units']}]" if "units" in f else ""
+                out.append(f"    {f['name']} ({f['type']}{unit}): {f['doc']}")
+            out += ['    """', ""] + [f"    {f['name']}: {PY_TYPES[f['type']]}" for f in entries["fields"]] + [""]
         out += ["", f"class {cls}(NamedTuple):"]
         doc = [f'    """{msg["name"]} (0x{msg["id"]:02X}, {msg["dir"]} -> '
                f'{"device" if msg["dir"] == "host" else "host"}): {msg["doc"]}']
@@ -142,6 +162,8 @@ def render_python(cat: dict) -> str:
         out += doc
         if msg["fields"]:
             out += [""] + [f"    {f['name']}: {PY_TYPES[f['type']]}" for f in msg["fields"]]
+        if entries:
+            out.append(f"    entries: tuple[{cls}Entry, ...] = ()")
         out.append("")
     out += [
         "",
@@ -156,6 +178,12 @@ def render_python(cat: dict) -> str:
         "    cls: type",
         "    struct: struct.Struct",
         "    units: dict[str, str]",
+        "    #: variable-length messages: the struct of one entry, its class, the most entries and",
+        "    #: the index of the field that counts them (the message's last field, `entries`, holds them)",
+        "    entry_struct: struct.Struct | None = None",
+        "    entry_cls: type | None = None",
+        "    max_entries: int = 0",
+        "    count_index: int = -1",
         "",
         "",
         "MESSAGES: dict[int, MessageSpec] = {",
@@ -163,9 +191,15 @@ def render_python(cat: dict) -> str:
     for msg in cat["messages"]:
         fmt = "<" + "".join(TYPES[f["type"]] for f in msg["fields"])
         units = {f["name"]: f["units"] for f in msg["fields"] if "units" in f}
+        extra = ""
+        entries = msg.get("entries")
+        if entries:
+            efmt = "<" + "".join(TYPES[f["type"]] for f in entries["fields"])
+            index = [f["name"] for f in msg["fields"]].index(entries["count_field"])
+            extra = (f", struct.Struct({efmt!r}), {camel(msg['name'])}Entry, {entries['max']}, {index}")
         out.append(
             f"    0x{msg['id']:02X}: MessageSpec({msg['name']!r}, 0x{msg['id']:02X}, {msg['dir']!r}, "
-            f"{bool(msg.get('queued', False))}, {camel(msg['name'])}, struct.Struct({fmt!r}), {units!r}),"
+            f"{bool(msg.get('queued', False))}, {camel(msg['name'])}, struct.Struct({fmt!r}), {units!r}{extra}),"
         )
     out += [
         "}",
@@ -191,6 +225,27 @@ def _c_field_io(fields: list[dict]) -> tuple[list[str], list[str]]:
         stores.append(f"    put_le<{utype}>(p + {off}, static_cast<{utype}>(m.{n}));")
         off += size
     return loads, stores
+
+
+def _offset(fields: list[dict], name: str) -> int:
+    """Byte offset of a field in a payload."""
+    off = 0
+    for f in fields:
+        if f["name"] == name:
+            return off
+        off += C_SIZES[f["type"]]
+    raise KeyError(name)
+
+
+def _flat(values: list) -> list:
+    """Field values with nested entries flattened, in wire order."""
+    out: list = []
+    for v in values:
+        if isinstance(v, (list, tuple)):
+            out += _flat(list(v))
+        else:
+            out.append(v)
+    return out
 
 
 def render_c_header(cat: dict) -> str:
@@ -243,23 +298,58 @@ def render_c_header(cat: dict) -> str:
     for m in cat["messages"]:
         cls = camel(m["name"])
         size = sum(C_SIZES[f["type"]] for f in m["fields"])
+        entries = m.get("entries")
+        if entries:
+            esize = sum(C_SIZES[f["type"]] for f in entries["fields"])
+            out.append(f"// One entry of {m['name']} (`{entries['count_field']}` of them follow the fixed fields).")
+            out.append(f"struct {cls}Entry {{")
+            for f in entries["fields"]:
+                unit = f" [{f['units']}]" if "units" in f else ""
+                out.append(f"    {C_TYPES[f['type']]} {f['name']};  // {f['doc']}{unit}")
+            out.append("};")
         arrow = "host -> device" if m["dir"] == "host" else "device -> host"
         out.append(f"// {m['name']} (0x{m['id']:02X}, {arrow}{', queued' if m.get('queued') else ''}): {m['doc']}")
         out.append(f"struct {cls} {{")
         out.append(f"    static const uint8_t ID = 0x{m['id']:02X};")
         out.append(f"    static const uint8_t SIZE = {size};")
+        if entries:
+            out.append(f"    static const uint8_t ENTRY_SIZE = {esize};")
+            out.append(f"    static const uint8_t MAX_ENTRIES = {entries['max']};")
         for f in m["fields"]:
             unit = f" [{f['units']}]" if "units" in f else ""
             out.append(f"    {C_TYPES[f['type']]} {f['name']};  // {f['doc']}{unit}")
+        if entries:
+            out.append(f"    {cls}Entry entries[{entries['max']}];  // the first `{entries['count_field']}` are sent")
         out.append("};")
         loads, stores = _c_field_io(m["fields"])
         unused = "" if m["fields"] else "(void)p; (void)m; "
         out.append(f"inline void unpack(const uint8_t* p, {cls}& m) {{ {unused}")
         out += loads
+        if entries:
+            eloads, _ = _c_field_io(entries["fields"])
+            n = entries["count_field"]
+            out.append(f"    if (m.{n} > {entries['max']}) m.{n} = {entries['max']};")
+            out.append(f"    for (uint8_t i = 0; i < m.{n}; ++i) {{")
+            out.append(f"        const uint8_t* q = p + {size} + i * {esize};")
+            out.append(f"        {cls}Entry& e = m.entries[i];")
+            out += ["    " + x.replace("m.", "e.").replace("(p + ", "(q + ") for x in eloads]
+            out.append("    }")
         out.append("}")
         out.append(f"inline uint8_t pack(const {cls}& m, uint8_t* p) {{ {unused}")
         out += stores
-        out.append(f"    return {size};")
+        if entries:
+            _, estores = _c_field_io(entries["fields"])
+            n = entries["count_field"]
+            out.append(f"    const uint8_t n = m.{n} > {entries['max']} ? {entries['max']} : m.{n};")
+            out.append(f"    p[{_offset(m['fields'], n)}] = n;")
+            out.append("    for (uint8_t i = 0; i < n; ++i) {")
+            out.append(f"        uint8_t* q = p + {size} + i * {esize};")
+            out.append(f"        const {cls}Entry& e = m.entries[i];")
+            out += ["    " + x.replace("m.", "e.").replace("(p + ", "(q + ") for x in estores]
+            out.append("    }")
+            out.append(f"    return static_cast<uint8_t>({size} + n * {esize});")
+        else:
+            out.append(f"    return {size};")
         out.append("}")
         out.append("")
     out.append("// Payload size of a message id, or -1 when the id is not in the catalogue.")
@@ -268,12 +358,29 @@ def render_c_header(cat: dict) -> str:
     out += [f"    case 0x{m['id']:02X}: return {sum(C_SIZES[f['type']] for f in m['fields'])};"
             for m in cat["messages"]]
     out += ["    default: return -1;", "    }", "}", ""]
+    out.append("// Length of a received payload as its own count field says (variable-length messages),")
+    out.append("// else payload_size(msg_id). Needs the fixed fields present (payload_size bytes).")
+    out.append("inline int16_t payload_length(uint8_t msg_id, const uint8_t* p) {")
+    out.append("    switch (msg_id) {")
+    for m in cat["messages"]:
+        if m.get("entries"):
+            e = m["entries"]
+            esize = sum(C_SIZES[f["type"]] for f in e["fields"])
+            base = sum(C_SIZES[f["type"]] for f in m["fields"])
+            out.append(f"    case 0x{m['id']:02X}: return static_cast<int16_t>({base} + "
+                       f"p[{_offset(m['fields'], e['count_field'])}] * {esize});")
+    out += ["    default: (void)p; return payload_size(msg_id);", "    }", "}", ""]
     out.append("// Whether a host message goes into the device's command queue.")
     out.append("inline bool is_queued(uint8_t msg_id) {")
     queued = [m for m in cat["messages"] if m.get("queued")]
     out.append("    return " + " || ".join(f"msg_id == 0x{m['id']:02X}" for m in queued) + ";")
     out += ["}", ""]
-    out.append("// Every field of a payload, in catalogue order, widened to int64 (for tests and tools).")
+    most = max(len(m["fields"]) + (m["entries"]["max"] * len(m["entries"]["fields"]) if m.get("entries") else 0)
+               for m in cat["messages"])
+    out.append("// Most values decode_fields() writes (a variable-length message's entries flattened).")
+    out.append(f"static const uint8_t MAX_DECODED_FIELDS = {most};")
+    out.append("")
+    out.append("// Every field of a payload, in catalogue order (then each entry's), widened to int64 (for tests and tools).")
     out.append("inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {")
     out.append("    switch (msg_id) {")
     for m in cat["messages"]:
@@ -285,7 +392,24 @@ def render_c_header(cat: dict) -> str:
             off += size
         if not m["fields"]:
             out.append("        (void)p; (void)out;")
-        out.append(f"        return {len(m['fields'])};")
+        e = m.get("entries")
+        if e:
+            esize = sum(C_SIZES[f["type"]] for f in e["fields"])
+            nf = len(m["fields"])
+            out.append(f"        const uint8_t n = p[{_offset(m['fields'], e['count_field'])}] > {e['max']} ? "
+                       f"{e['max']} : p[{_offset(m['fields'], e['count_field'])}];")
+            out.append("        for (uint8_t i = 0; i < n; ++i) {")
+            out.append(f"            const uint8_t* q = p + {off} + i * {esize};")
+            eoff = 0
+            for j, f in enumerate(e["fields"]):
+                size = C_SIZES[f["type"]]
+                out.append(f"            out[{nf} + i * {len(e['fields'])} + {j}] = "
+                           f"static_cast<{C_TYPES[f['type']]}>(get_le<uint{size * 8}_t>(q + {eoff}));")
+                eoff += size
+            out.append("        }")
+            out.append(f"        return static_cast<uint8_t>({nf} + n * {len(e['fields'])});")
+        else:
+            out.append(f"        return {len(m['fields'])};")
         out.append("    }")
     out += ["    default: return 0;", "    }", "}", "", "}  // namespace proto", ""]
     return "\n".join(out)
@@ -305,7 +429,7 @@ def render_c_vectors(vectors: dict) -> str:
     ids = {}
     for i, v in enumerate(vectors["messages"]):
         frame = bytes.fromhex(v["frame"])
-        fields = list(v["fields"].values())
+        fields = _flat(list(v["fields"].values()))
         out.append(f"static const uint8_t gv_msg_frame_{i}[] = {arr(v['frame'])};")
         out.append(f"static const int64_t gv_msg_fields_{i}[] = {{{', '.join(str(x) + 'LL' for x in fields) or '0'}}};")
         ids[i] = (v, len(frame), len(fields))
@@ -351,6 +475,16 @@ def render_markdown(cat: dict) -> str:
             out += ["| offset | field | type | units | meaning |", "|---|---|---|---|---|"]
             off = 0
             for f in msg["fields"]:
+                out.append(f"| {off} | `{f['name']}` | {f['type']} | {f.get('units', '')} | {f['doc']} |")
+                off += struct.calcsize("<" + TYPES[f["type"]])
+            out.append("")
+        e = msg.get("entries")
+        if e:
+            efmt = "<" + "".join(TYPES[f["type"]] for f in e["fields"])
+            out += [f"Then `{e['count_field']}` entries (at most {e['max']}) of {struct.calcsize(efmt)} B each:", "",
+                    "| offset in entry | field | type | units | meaning |", "|---|---|---|---|---|"]
+            off = 0
+            for f in e["fields"]:
                 out.append(f"| {off} | `{f['name']}` | {f['type']} | {f.get('units', '')} | {f['doc']} |")
                 off += struct.calcsize("<" + TYPES[f["type"]])
             out.append("")

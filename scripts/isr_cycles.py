@@ -36,6 +36,7 @@ ISRS = [  # (vector, avr-libc name, description)
     (17, "TIMER1_COMPA_vect", "step timer"),
     (25, "USART0_RX_vect", "UART0 RX"),
     (13, "TIMER2_COMPA_vect", "heater PWM dither"),
+    (5, "INT4_vect", "ADS1115 ALERT/RDY pulse count"),
 ]
 LIBC_HEADER = Path("/usr/lib/avr/include/avr/iomxx0_1.h")
 

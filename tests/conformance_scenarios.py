@@ -15,6 +15,7 @@ import time
 from typing import Callable
 
 from tsa_bench.protocol import MessageDecoder, encode, encode_raw, msg
+from tsa_bench.protocol.blocks import ADS1115_CONVERSION_US, expand
 
 NOT_MEASURED = int(msg.AdcFlags.RESISTANCE_NOT_MEASURED)
 
@@ -45,10 +46,13 @@ class Exchange:
         self.samples: list[msg.Sample] = []
         self.events: list[msg.Event] = []
         self.received: list = []          # every message, in order
+        self.blocks = 0                   # SAMPLE_BLOCK frames (their samples are in samples)
 
     def _read_some(self) -> list:
         data = self.port.read(self.port.in_waiting or 1) if self.settle_s else self.port.read(4096)
-        out = [f.message for f in self.decoder.feed(data)]
+        frames = [f.message for f in self.decoder.feed(data)]
+        self.blocks += sum(isinstance(m, msg.SampleBlock) for m in frames)
+        out = expand(frames)
         self.samples += [m for m in out if isinstance(m, msg.Sample)]
         self.events += [m for m in out if isinstance(m, msg.Event)]
         self.received += out
@@ -145,7 +149,7 @@ def every_command_and_refusal(ex: Exchange) -> list:
     log.append(ex.send(msg.MoveBy(1, -10**6, 1000, 1000)))                    # projected below min
     log.append(ex.send(msg.SetHeater(1, 60_000)))                             # heater beyond max
     log.append(ex.send(msg.SetSampling(1, 500)))                              # period too short
-    log.append(ex.send(msg.SetSampling(1, 2999)))                             # below the device's floor
+    log.append(ex.send(msg.SetSampling(1, ADS1115_CONVERSION_US - 1)))        # below one ADS1115 conversion
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # starts at once
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # duplicate: same ACK again
     for i in range(17):                                                        # fill the queue, then one more
@@ -243,6 +247,23 @@ def short_period(ex: Exchange) -> dict:
     settled = ex.samples[20:]
     measured = sum(not s.adc_flags & NOT_MEASURED for s in settled) / len(settled)
     return {"log": log, "continuous": _counters_continuous(ex.samples), "measured_fraction": measured}
+
+
+def continuous_sampling(ex: Exchange, seconds: float = 1.0) -> dict:
+    """The shortest period, one ADS1115 conversion (1163 us): samples at the ADS1115's
+    860 per second in SAMPLE_BLOCK frames, no counter gap, resistance words at the
+    CS5513's own rate (one in several samples) once its filter has settled."""
+    log = [handshake(ex), ex.send(msg.SetSampling(1, ADS1115_CONVERSION_US))]
+    ex.wait_device_s(seconds)
+    log.append(ex.send(msg.SetSampling(2, 0)))
+    samples = ex.samples
+    span_s = (samples[-1].t_us - samples[0].t_us) / 1e6
+    settled = [s for s in samples if s.t_us - samples[0].t_us > 200_000]
+    words = sum(not s.adc_flags & NOT_MEASURED for s in settled)
+    settled_s = (settled[-1].t_us - settled[0].t_us) / 1e6
+    return {"log": log, "continuous": _counters_continuous(samples), "blocks": ex.blocks,
+            "samples": len(samples), "rate_per_s": (len(samples) - 1) / span_s,
+            "resistance_per_s": words / settled_s}
 
 
 def stop_at_speed(ex: Exchange) -> dict:

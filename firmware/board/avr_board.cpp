@@ -7,6 +7,7 @@
 #include "../drivers/current_source.h"
 #include "../drivers/heater.h"
 #include "../drivers/reset_cause.h"
+#include "../hal/ads_ready.h"
 #include "../hal/clock.h"
 #include "../hal/gpio.h"
 #include "../hal/step_timer.h"
@@ -42,6 +43,7 @@ void AvrBoard::init() {
     hal::clock_init();
     hal::uart_init();
     hal::twi_init();
+    hal::ads_ready_init();
     hal::step_init();
     sei();
     hal::gpio_write(hal::PIN_LED, true);
@@ -76,6 +78,13 @@ bool AvrBoard::sense_current(bool on) { return drv::current_source::set(on); }
 
 bool AvrBoard::position_start() { return position_adc_.start(); }
 int8_t AvrBoard::position_poll(int16_t& counts) { return position_adc_.poll(counts); }
+bool AvrBoard::position_continuous(bool on) {
+    const bool ok = on ? position_adc_.start_continuous() : position_adc_.stop_continuous();
+    hal::ads_ready_take();  // pulses from before (or of the old mode) belong to no sample
+    return ok;
+}
+uint8_t AvrBoard::position_ready() { return hal::ads_ready_take(); }
+int8_t AvrBoard::position_read(int16_t& counts) { return position_adc_.read_latest(counts) ? 1 : -1; }
 
 // Refused without the sense current: the conversion would measure nothing (the core
 // should never ask; this keeps a core bug from reporting a bogus resistance).

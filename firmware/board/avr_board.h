@@ -47,6 +47,9 @@ public:
 
     bool position_start() override;
     int8_t position_poll(int16_t& counts) override;
+    bool position_continuous(bool on) override;
+    uint8_t position_ready() override;
+    int8_t position_read(int16_t& counts) override;
     bool resistance_start() override;
     int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
 

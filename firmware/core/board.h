@@ -80,6 +80,15 @@ public:
     virtual bool position_start() = 0;
     // 1 = conversion read into counts, 0 = not ready yet, -1 = I2C failure.
     virtual int8_t position_poll(int16_t& counts) = 0;
+    // Continuous position conversions (ADS1115 continuous mode at the configured data
+    // rate, ALERT/RDY set up as its conversion-ready pulse, ~8 us low at the end of every
+    // conversion; an edge interrupt counts the pulses). on = false returns the ADC to
+    // single-shot, powered down. Returns false when the ADC does not answer on I2C.
+    virtual bool position_continuous(bool on) = 0;
+    // Conversions finished since the last call (ALERT/RDY pulses counted; saturates at 255).
+    virtual uint8_t position_ready() = 0;
+    // Read the latest continuous conversion: 1 = counts valid, -1 = I2C failure.
+    virtual int8_t position_read(int16_t& counts) = 0;
     // Start one resistance conversion (CS5513); the sense current must be on and
     // settled (the core waits config RESISTANCE_SETTLE_US after enabling it).
     virtual bool resistance_start() = 0;

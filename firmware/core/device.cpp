@@ -26,7 +26,9 @@ Device::Device(Board& board)
       heater_mV_(0), fault_(0), fault_since_us_(0), stopping_(false), rest_steps_(0), position_known_(false),
       motor_released_(false), underruns_seen_(0), recoveries_seen_(0), period_us_(0), next_sample_us_(0),
       counter_(0), samples_missed_(0), sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true),
-      resistance_started_(false), sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0) {
+      resistance_started_(false), sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0),
+      continuous_(false), continuous_ok_(false), conv_per_sample_(1), conv_seen_(0), word_armed_(false),
+      word_ready_(false), word_counts_(0), word_flags_(0), pending_len_(0), pending_samples_(0) {
     last_ack_ = proto::Ack();
     sample_ = proto::Sample();
 }
@@ -64,6 +66,11 @@ void Device::boot() {
 
 void Device::poll() {
     board_.kick_hw_watchdog();
+    // The continuous sampler has one conversion time (1.16 ms) to read each result before
+    // the next replaces it: it looks between the pass's longer parts (here after the
+    // previous pass's output, in read_serial after each frame, after each step feed and
+    // a move's begin()).
+    if (continuous_) run_sampler(board_.now_us());
     feed_steps();
     read_serial(board_.now_us());
     uint64_t now = board_.now_us();
@@ -102,6 +109,7 @@ void Device::read_serial(uint64_t now) {
         if (parser_.feed(static_cast<uint8_t>(c), now)) {
             last_host_us_ = now;
             handle_frame(now, parser_.msg_id(), parser_.seq(), parser_.payload(), parser_.payload_len());
+            if (continuous_) run_sampler(board_.now_us());
         }
     }
 }
@@ -221,7 +229,8 @@ uint8_t Device::check(uint8_t id, const uint8_t* p) const {
     } else if (id == proto::SetSampling::ID) {
         proto::SetSampling m;
         proto::unpack(p, m);
-        if (m.period_us > 0 && m.period_us < cfg::MIN_SAMPLE_PERIOD_US) return proto::status::BAD_ARGUMENT;
+        const uint8_t refusal = sampling_refusal(m.period_us, cfg::BAUD);
+        if (refusal != proto::status::OK) return refusal;
     }
     if (queue_.free() == 0) return proto::status::QUEUE_FULL;
     return proto::status::OK;

@@ -43,6 +43,7 @@
 #include "frame.h"
 #include "planner.h"
 #include "protocol_catalogue.h"
+#include "sample_block.h"
 #include "writer.h"
 
 namespace fw {
@@ -128,6 +129,11 @@ private:
     void run_sampler(uint64_t now);
     void start_sample(uint64_t now);
     void progress_sample(uint64_t now);
+    void run_continuous(uint64_t now);
+    void progress_words(uint64_t now);
+    void continuous_off();
+    void flush_block();
+    void retry_block();
     void finish_resistance(uint8_t extra_flags);
     void abort_resistance();
     void sense_off();
@@ -190,6 +196,21 @@ private:
     uint64_t sense_since_us_;
     uint64_t sample_start_us_;
     uint64_t conversion_us_;  // resistance conversion started at
+    // continuous sampler (periods below cfg::SINGLE_SHOT_MIN_PERIOD_US)
+    bool continuous_;
+    bool continuous_ok_;      // the ADS1115 took continuous mode (else: grid, position invalid)
+    uint8_t conv_per_sample_;
+    uint8_t conv_seen_;       // conversions counted towards the next sample
+    bool word_armed_;         // a CS5513 measurement is armed
+    bool word_ready_;         // a CS5513 word waits for the next sample
+    int32_t word_counts_;
+    uint8_t word_flags_;
+    SampleBlockBuilder block_;
+    // a closed block the line had no room for yet (sent on a later pass; dropped only
+    // when the next block closes first)
+    uint8_t pending_[proto::SampleBlock::SIZE + proto::SampleBlock::MAX_ENTRIES * proto::SampleBlock::ENTRY_SIZE];
+    uint8_t pending_len_;
+    uint8_t pending_samples_;
 };
 
 }  // namespace fw

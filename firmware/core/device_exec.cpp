@@ -59,6 +59,7 @@ bool Device::begin(const QueuedCommand& c) {
                                            : static_cast<uint32_t>(start - target);
         board_.position_record(start, false);  // a reset mid-move leaves it unknown
         planner_.begin(distance, c.value, c.accel);
+        if (continuous_) run_sampler(board_.now_us());  // begin() and the events took most of a conversion
         exec_ = EXEC_MOVE;
         feed_steps();
         return true;
@@ -136,6 +137,9 @@ void Device::feed_steps() {
                                                 ((static_cast<int32_t>(add) * pairs) >> 8));
         }
     }
+    // the continuous sampler gets a look after every feed: on a ramp's per-step runs a
+    // pass can otherwise outlast one ADS1115 conversion
+    if (continuous_) run_sampler(board_.now_us());
 }
 
 // STOP and the host watchdog: queue cleared, heater off, the running move (if any)
@@ -201,7 +205,7 @@ void Device::release_motor(uint64_t now) {
     motor_released_ = true;
     position_known_ = false;
     board_.position_record(board_.step_position(), false);
-    period_us_ = 0;
+    set_sampling(0, now);
     abort_resistance();
     sense_off();
     send_event(now, proto::event_kind::MOTOR_RELEASED, fault_);

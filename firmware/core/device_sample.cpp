@@ -14,6 +14,8 @@
 // shorter than its conversion time, samples still come on every slot with their
 // position. A grid slot that passes while the previous sample is still converting its
 // position is skipped, its counter value consumed, so the host sees the gap.
+// Periods below cfg::SINGLE_SHOT_MIN_PERIOD_US run the continuous sampler instead
+// (device_continuous.cpp).
 #include "config.h"
 #include "device.h"
 
@@ -28,12 +30,36 @@ const uint32_t RESISTANCE_MARGIN_US = 500UL;
 }  // namespace
 
 void Device::set_sampling(uint32_t period_us, uint64_t t_us) {
+    const bool continuous = period_us > 0 && period_us < cfg::SINGLE_SHOT_MIN_PERIOD_US;
+    if (continuous_ && !continuous) continuous_off();
     period_us_ = period_us;
     next_sample_us_ = t_us + period_us;
+    if (continuous) {
+        if (sampler_ == SAMPLER_BUSY) {  // a single-shot sample still converting: send what it has
+            if (!position_done_) sample_.adc_flags |= proto::adc_flags::POSITION_INVALID;
+            if (!resistance_done_) finish_resistance(proto::adc_flags::RESISTANCE_NOT_MEASURED);
+            position_done_ = true;
+            progress_sample(t_us);
+        }
+        if (!continuous_) {
+            continuous_ = true;
+            continuous_ok_ = board_.position_continuous(true);
+            word_armed_ = false;
+            word_ready_ = false;
+        }
+        conv_per_sample_ = conversions_per_sample(period_us);
+        conv_seen_ = 0;
+        board_.position_ready();  // conversions before this point belong to no sample
+    }
     if (period_us == 0 && sampler_ == SAMPLER_IDLE) sense_off();
 }
 
 void Device::run_sampler(uint64_t now) {
+    retry_block();
+    if (continuous_) {
+        run_continuous(now);
+        return;
+    }
     // The sample in progress first: when it finishes, the next one may start at once.
     progress_sample(now);
     if (sampler_ != SAMPLER_IDLE || period_us_ == 0) return;
@@ -142,6 +168,8 @@ void Device::abort_resistance() {
 }
 
 void Device::sense_off() {
+    word_armed_ = false;
+    word_ready_ = false;
     if (!sense_on_) return;
     board_.sense_current(false);
     sense_on_ = false;

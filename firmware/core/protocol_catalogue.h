@@ -9,7 +9,7 @@
 namespace proto {
 
 static const uint8_t PROTOCOL_VERSION = 1;
-static const uint32_t CATALOGUE_HASH = 0x4F006524UL;
+static const uint32_t CATALOGUE_HASH = 0xF417839FUL;
 static const uint8_t MAX_PAYLOAD = 64;
 
 // Little-endian fields. On little-endian targets (the AVR, x86) a fixed-size memcpy,
@@ -41,6 +41,8 @@ static const uint8_t LIMIT_EXCEEDED = 3;
 static const uint8_t BAD_STATE = 4;
 static const uint8_t UNKNOWN_MESSAGE = 5;
 static const uint8_t BAD_LENGTH = 6;
+static const uint8_t TOO_FAST_FOR_SENSOR = 7;
+static const uint8_t TOO_FAST_FOR_LINE = 8;
 }  // namespace status
 
 namespace event_kind {
@@ -79,6 +81,13 @@ static const uint8_t RESISTANCE_NOT_MEASURED = 4;
 static const uint8_t POSITION_INVALID = 8;
 }  // namespace adc_flags
 
+namespace sample_flags {
+static const uint8_t POSITION_INVALID = 1;
+static const uint8_t MOTOR_MOVING = 2;
+static const uint8_t RESISTANCE_OVERRANGE = 4;
+static const uint8_t RESISTANCE_OSCILLATION = 8;
+}  // namespace sample_flags
+
 namespace device_flags {
 static const uint8_t SIMULATED = 1;
 }  // namespace device_flags
@@ -107,6 +116,7 @@ static const uint8_t ACK = 0x82;
 static const uint8_t SAMPLE = 0x83;
 static const uint8_t EVENT = 0x84;
 static const uint8_t QUEUE_STATUS = 0x85;
+static const uint8_t SAMPLE_BLOCK = 0x86;
 }  // namespace id
 
 // HELLO (0x01, host -> device): Start a session; the device answers with IDENTITY and resets its duplicate filter.
@@ -497,6 +507,76 @@ inline uint8_t pack(const QueueStatus& m, uint8_t* p) {
     return 27;
 }
 
+// One entry of SAMPLE_BLOCK (`more` of them follow the fixed fields).
+struct SampleBlockEntry {
+    uint16_t dt_us;  // time since the previous sample [us]
+    int16_t step_delta;  // step position minus the previous sample's [step]
+    int16_t position_delta;  // position_raw minus the previous sample's [count]
+    uint8_t flags;  // sample_flags of this sample (position_invalid and motor_moving only)
+};
+// SAMPLE_BLOCK (0x86, device -> host): Up to six consecutive samples of the continuous sampler (periods below the single-shot minimum) in one frame - the first in full, each next one as a delta; at most one CS5513 word per block (resistance is converted at the CS5513's own rate, slower than the samples).
+struct SampleBlock {
+    static const uint8_t ID = 0x86;
+    static const uint8_t SIZE = 29;
+    static const uint8_t ENTRY_SIZE = 7;
+    static const uint8_t MAX_ENTRIES = 5;
+    uint32_t counter;  // counter of the first sample; the others follow on (counter + 1 ...)
+    uint64_t t_us;  // device time at which the first sample's position conversion started [us]
+    int32_t step_position;  // motor position at the first sample [step]
+    int16_t position_raw;  // ADS1115 conversion of the first sample [count]
+    uint8_t flags;  // sample_flags of the first sample plus the flags of the block's resistance word
+    uint16_t heater_mV;  // heater equivalent voltage applied (the same for every sample of the block) [mV]
+    uint16_t segment;  // segment index executing (the same for every sample of the block)
+    uint8_t resistance_at;  // index in the block (0 = the first sample) of the sample the CS5513 word belongs to; 255 = no word in this block
+    int32_t resistance_raw;  // CS5513 20-bit two's-complement conversion (0 when resistance_at is 255) [count]
+    uint8_t more;  // number of entries that follow (0..5)
+    SampleBlockEntry entries[5];  // the first `more` are sent
+};
+inline void unpack(const uint8_t* p, SampleBlock& m) { 
+    m.counter = static_cast<uint32_t>(get_le<uint32_t>(p + 0));
+    m.t_us = static_cast<uint64_t>(get_le<uint64_t>(p + 4));
+    m.step_position = static_cast<int32_t>(get_le<uint32_t>(p + 12));
+    m.position_raw = static_cast<int16_t>(get_le<uint16_t>(p + 16));
+    m.flags = static_cast<uint8_t>(get_le<uint8_t>(p + 18));
+    m.heater_mV = static_cast<uint16_t>(get_le<uint16_t>(p + 19));
+    m.segment = static_cast<uint16_t>(get_le<uint16_t>(p + 21));
+    m.resistance_at = static_cast<uint8_t>(get_le<uint8_t>(p + 23));
+    m.resistance_raw = static_cast<int32_t>(get_le<uint32_t>(p + 24));
+    m.more = static_cast<uint8_t>(get_le<uint8_t>(p + 28));
+    if (m.more > 5) m.more = 5;
+    for (uint8_t i = 0; i < m.more; ++i) {
+        const uint8_t* q = p + 29 + i * 7;
+        SampleBlockEntry& e = m.entries[i];
+        e.dt_us = static_cast<uint16_t>(get_le<uint16_t>(q + 0));
+        e.step_delta = static_cast<int16_t>(get_le<uint16_t>(q + 2));
+        e.position_delta = static_cast<int16_t>(get_le<uint16_t>(q + 4));
+        e.flags = static_cast<uint8_t>(get_le<uint8_t>(q + 6));
+    }
+}
+inline uint8_t pack(const SampleBlock& m, uint8_t* p) { 
+    put_le<uint32_t>(p + 0, static_cast<uint32_t>(m.counter));
+    put_le<uint64_t>(p + 4, static_cast<uint64_t>(m.t_us));
+    put_le<uint32_t>(p + 12, static_cast<uint32_t>(m.step_position));
+    put_le<uint16_t>(p + 16, static_cast<uint16_t>(m.position_raw));
+    put_le<uint8_t>(p + 18, static_cast<uint8_t>(m.flags));
+    put_le<uint16_t>(p + 19, static_cast<uint16_t>(m.heater_mV));
+    put_le<uint16_t>(p + 21, static_cast<uint16_t>(m.segment));
+    put_le<uint8_t>(p + 23, static_cast<uint8_t>(m.resistance_at));
+    put_le<uint32_t>(p + 24, static_cast<uint32_t>(m.resistance_raw));
+    put_le<uint8_t>(p + 28, static_cast<uint8_t>(m.more));
+    const uint8_t n = m.more > 5 ? 5 : m.more;
+    p[28] = n;
+    for (uint8_t i = 0; i < n; ++i) {
+        uint8_t* q = p + 29 + i * 7;
+        const SampleBlockEntry& e = m.entries[i];
+        put_le<uint16_t>(q + 0, static_cast<uint16_t>(e.dt_us));
+        put_le<uint16_t>(q + 2, static_cast<uint16_t>(e.step_delta));
+        put_le<uint16_t>(q + 4, static_cast<uint16_t>(e.position_delta));
+        put_le<uint8_t>(q + 6, static_cast<uint8_t>(e.flags));
+    }
+    return static_cast<uint8_t>(29 + n * 7);
+}
+
 // Payload size of a message id, or -1 when the id is not in the catalogue.
 inline int16_t payload_size(uint8_t msg_id) {
     switch (msg_id) {
@@ -517,7 +597,17 @@ inline int16_t payload_size(uint8_t msg_id) {
     case 0x83: return 28;
     case 0x84: return 17;
     case 0x85: return 27;
+    case 0x86: return 29;
     default: return -1;
+    }
+}
+
+// Length of a received payload as its own count field says (variable-length messages),
+// else payload_size(msg_id). Needs the fixed fields present (payload_size bytes).
+inline int16_t payload_length(uint8_t msg_id, const uint8_t* p) {
+    switch (msg_id) {
+    case 0x86: return static_cast<int16_t>(29 + p[28] * 7);
+    default: (void)p; return payload_size(msg_id);
     }
 }
 
@@ -526,7 +616,10 @@ inline bool is_queued(uint8_t msg_id) {
     return msg_id == 0x10 || msg_id == 0x11 || msg_id == 0x12 || msg_id == 0x13 || msg_id == 0x14;
 }
 
-// Every field of a payload, in catalogue order, widened to int64 (for tests and tools).
+// Most values decode_fields() writes (a variable-length message's entries flattened).
+static const uint8_t MAX_DECODED_FIELDS = 30;
+
+// Every field of a payload, in catalogue order (then each entry's), widened to int64 (for tests and tools).
 inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
     switch (msg_id) {
     case 0x01: {
@@ -649,6 +742,27 @@ inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
         out[9] = static_cast<uint16_t>(get_le<uint16_t>(p + 23));
         out[10] = static_cast<uint16_t>(get_le<uint16_t>(p + 25));
         return 11;
+    }
+    case 0x86: {
+        out[0] = static_cast<uint32_t>(get_le<uint32_t>(p + 0));
+        out[1] = static_cast<uint64_t>(get_le<uint64_t>(p + 4));
+        out[2] = static_cast<int32_t>(get_le<uint32_t>(p + 12));
+        out[3] = static_cast<int16_t>(get_le<uint16_t>(p + 16));
+        out[4] = static_cast<uint8_t>(get_le<uint8_t>(p + 18));
+        out[5] = static_cast<uint16_t>(get_le<uint16_t>(p + 19));
+        out[6] = static_cast<uint16_t>(get_le<uint16_t>(p + 21));
+        out[7] = static_cast<uint8_t>(get_le<uint8_t>(p + 23));
+        out[8] = static_cast<int32_t>(get_le<uint32_t>(p + 24));
+        out[9] = static_cast<uint8_t>(get_le<uint8_t>(p + 28));
+        const uint8_t n = p[28] > 5 ? 5 : p[28];
+        for (uint8_t i = 0; i < n; ++i) {
+            const uint8_t* q = p + 29 + i * 7;
+            out[10 + i * 4 + 0] = static_cast<uint16_t>(get_le<uint16_t>(q + 0));
+            out[10 + i * 4 + 1] = static_cast<int16_t>(get_le<uint16_t>(q + 2));
+            out[10 + i * 4 + 2] = static_cast<int16_t>(get_le<uint16_t>(q + 4));
+            out[10 + i * 4 + 3] = static_cast<uint8_t>(get_le<uint8_t>(q + 6));
+        }
+        return static_cast<uint8_t>(10 + n * 4);
     }
     default: return 0;
     }

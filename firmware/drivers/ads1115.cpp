@@ -50,6 +50,37 @@ bool Ads1115::read_register(uint8_t reg, uint16_t& value) {
     return true;
 }
 
+uint16_t Ads1115::continuous_config_word(uint8_t pga_bits, uint8_t dr_bits) {
+    // OS = 0, MODE = 0 (continuous), COMP_QUE = 00 (ALERT/RDY on, every conversion)
+    return static_cast<uint16_t>(CFG_MUX_AIN0_GND | ((pga_bits & 0x7u) << CFG_PGA_SHIFT) |
+                                 ((dr_bits & 0x7u) << CFG_DR_SHIFT));
+}
+
+bool Ads1115::write_register(uint8_t reg, uint16_t value) {
+    const uint8_t frame[3] = {reg, static_cast<uint8_t>(value >> 8), static_cast<uint8_t>(value & 0xFF)};
+    return hal::twi_write(address_, frame, sizeof frame);
+}
+
+bool Ads1115::start_continuous() {
+    started_ = false;
+    const uint8_t pointer = REG_CONVERSION;
+    return write_register(REG_LO_THRESH, 0x0000) && write_register(REG_HI_THRESH, 0x8000) &&
+           write_register(REG_CONFIG, continuous_config_word(cfg::ADS1115_PGA_BITS, cfg::ADS1115_DR_BITS)) &&
+           hal::twi_write(address_, &pointer, 1);
+}
+
+bool Ads1115::stop_continuous() {
+    const uint16_t single = static_cast<uint16_t>(config_word(cfg::ADS1115_PGA_BITS, cfg::ADS1115_DR_BITS) & ~CFG_OS_START);
+    return write_register(REG_CONFIG, single);
+}
+
+bool Ads1115::read_latest(int16_t& counts) {
+    uint8_t rx[2];
+    if (!hal::twi_read(address_, rx, 2)) return false;
+    counts = static_cast<int16_t>((static_cast<uint16_t>(rx[0]) << 8) | rx[1]);
+    return true;
+}
+
 int8_t Ads1115::poll(int16_t& counts) {
     if (!started_) return -1;
     // 32-bit modular difference: exact for waits far below the 71-minute wrap.

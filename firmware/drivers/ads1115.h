@@ -18,6 +18,8 @@ public:
     // Register pointer values (datasheet 9.6.1).
     static const uint8_t REG_CONVERSION = 0x00;
     static const uint8_t REG_CONFIG = 0x01;
+    static const uint8_t REG_LO_THRESH = 0x02;
+    static const uint8_t REG_HI_THRESH = 0x03;
     static const uint32_t CONVERSION_TIMEOUT_US = 250000UL;  // >> 1/8 SPS
 
     // Config word for one single-shot AIN0 conversion with the given PGA/DR bits.
@@ -28,10 +30,21 @@ public:
     explicit Ads1115(uint8_t address7);
     bool start();
     int8_t poll(int16_t& counts);
+    // Continuous mode: Lo_thresh MSB 0 and Hi_thresh MSB 1 turn ALERT/RDY into the
+    // conversion-ready pulse (COMP_QUE = 00 keeps the pin enabled), then the config
+    // (MODE = 0, the same MUX/PGA/DR) starts converting, and the pointer is left on
+    // the conversion register so read_latest() is one 2-byte read. false: no ACK.
+    bool start_continuous();
+    // Back to single-shot, powered down, ALERT/RDY off (COMP_QUE = 11).
+    bool stop_continuous();
+    // The latest conversion (continuous mode); false on an I2C failure.
+    bool read_latest(int16_t& counts);
+    static uint16_t continuous_config_word(uint8_t pga_bits, uint8_t dr_bits);
     bool busy() const { return started_; }
 
 private:
     bool read_register(uint8_t reg, uint16_t& value);
+    bool write_register(uint8_t reg, uint16_t value);
     uint8_t address_;
     bool started_;
     uint32_t started_at_us_;

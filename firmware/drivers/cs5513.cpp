@@ -41,6 +41,11 @@ int8_t Cs5513::poll(int32_t& counts, uint8_t& flags) {
     const uint64_t now = hal::micros();
     if (hal::gpio_read(hal::PIN_RES_SDO)) {
         if (now - started_at_us_ < timeout_us_) return 0;
+        // No word in time: a read cut short (a glitch on SCLK, a word that became ready
+        // mid-clocking) leaves the part holding its output register, which blocks every
+        // later word. Clocking a whole word out finishes it; with nothing pending the
+        // clocks are ignored.
+        (void)clock_word();
         armed_ = false;
         return -1;
     }

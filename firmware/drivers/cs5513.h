@@ -19,7 +19,8 @@
 // slowest on-chip oscillator, 32 kHz: 53 Sps); once the current has been on that long,
 // the next ready word is used at once. poll(): 0 = not ready, 1 = counts/flags valid,
 // -1 = no valid word within timeout_us of start() (also when the ADC is absent: SDO
-// has a pull-up). Reading a word clocks 24 bits in (hal::res_shift_in, ~30 us on the AVR).
+// has a pull-up); a time-out clocks one word out, so a read left half done (the part
+// then holds its output register and every later word is lost) is finished. Reading a word clocks 24 bits in (hal::res_shift_in, ~30 us on the AVR).
 // The core still waits cfg::RESISTANCE_SETTLE_US for the analog source to settle.
 #pragma once
 #include <stdint.h>

@@ -21,6 +21,8 @@
 //   Heater MOSFET gate               PB4      D10          OC2A, Timer2 fast PWM
 //   TWI SDA (ADS1115)                PD1      D20          400 kHz, external pull-ups on the board
 //   TWI SCL (ADS1115)                PD0      D21
+//   ADS1115 ALERT/RDY                PE4      D2           INT4, falling edge; open drain: 10k pull-up to 5 V
+//                                                          on the board (~8 us low pulse per conversion)
 //   Status LED                       PB7      D13          on-board LED "L"
 //
 // Timers: Timer1 = step generator (CTC, F_CPU/8); Timer2 = heater PWM; Timer3 = the
@@ -42,6 +44,10 @@
 #define PINS_RES_SCLK_BIT 1
 #define PINS_RES_SDO_PIN PINC
 #define PINS_RES_SDO_BIT 2
+
+// ADS1115 ALERT/RDY: external interrupt INT4 (EICRB ISC4[1:0] = 10, falling edge).
+#define PINS_ADS_RDY_PIN PINE
+#define PINS_ADS_RDY_BIT 4
 
 // X-macro: (hal::Pin, port letter, bit). The order need not match the enum; gpio.cpp
 // expands it into switch statements with constant addresses (sbi/cbi where possible),

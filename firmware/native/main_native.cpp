@@ -6,12 +6,14 @@
 //   g++ -std=c++11 -O2 -Ifirmware -Ifirmware/core -Ifirmware/tests firmware/core/*.cpp
 //       firmware/tests/fake_board.cpp firmware/native/main_native.cpp
 //       -o firmware/build/tsa_bench_native        (one line, from the repository root)
-// Run:  tsa_bench_native [--speed X | --virtual]
+// Run:  tsa_bench_native [--speed X | --virtual] [--cs5513-us US]
 //   --speed X  device time = wall time x X (default 1).
 //   --virtual  device time runs as fast as possible while the host is quiet, but never
 //              more than an eighth of a watchdog period past the last byte from the host, unless
 //              the host has been silent for two watchdog periods of wall time (gone, not
 //              slow: then the watchdog fires), as `tsa-bench sim-serve` paces itself.
+//   --cs5513-us US  a resistance word takes US after arming (default 0: at once; 19125 is
+//              the CS5513 at its slowest on-chip oscillator, DS337: CLK/612 at 32 kHz).
 // Sends BOOT at once; exits when stdin closes. The IDENTITY has the SIMULATED flag and
 // SIM_SET_LOAD changes the (crude) simulated sensors. Sensors: position counts fall
 // with twist, resistance counts rise with it, both steady at rest.
@@ -72,8 +74,10 @@ int main(int argc, char** argv) {
             speed = atof(argv[++i]);
         } else if (!strcmp(argv[i], "--virtual")) {
             virtual_time = true;
+        } else if (!strcmp(argv[i], "--cs5513-us") && i + 1 < argc) {
+            g_board.resistance_latency_us = static_cast<uint32_t>(atol(argv[++i]));
         } else {
-            fprintf(stderr, "usage: %s [--speed X | --virtual]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--speed X | --virtual] [--cs5513-us US]\n", argv[0]);
             return 2;
         }
     }

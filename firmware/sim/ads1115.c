@@ -15,7 +15,11 @@
 //                for the part's oscillator (+-10 % in the data sheet);
 //   COMP_MODE/POL/LAT/QUE (4:0): the comparator (traditional or window, latching or
 //                not, asserting after 1, 2 or 4 conversions beyond the thresholds, 11 =
-//                off). ALERT/RDY is not wired to the AVR; its assertions are counted.
+//                off); its assertions are counted.
+// ALERT/RDY (open drain, the board's pull-up, wired to PE4 = INT4): with Hi_thresh's MSB
+// 1, Lo_thresh's MSB 0 and COMP_QUE not 11 it is the conversion-ready pin (9.3.8): in
+// continuous mode it pulses low for ~8 us at the end of every conversion (COMP_POL = 1:
+// a high pulse). The comparator is then off. Pulses are counted (ads.rdy_pulses).
 // A conversion starts when the config write's last byte has been shifted in (nine bit
 // times after the byte's TWCR write, twi_bus.c); its start instants are the sampler's
 // real timing (jitter figure, --trace). The plant's position reading is requested at
@@ -56,6 +60,8 @@ static struct {
     int alert;             // ALERT/RDY asserted (latched or not)
     double rate_error;
     FILE *trace;
+    uint64_t done_cycle;   // when the latest conversion finished
+    int unread;            // the latest conversion has not been read yet
 } g;
 
 static const uint16_t SPS[8] = {8, 16, 32, 64, 128, 250, 475, 860};
@@ -98,6 +104,20 @@ static void comparator(int16_t code) {
     }
 }
 
+static int rdy_mode(void) {
+    return (g.regs[3] & 0x8000) && !(g.regs[2] & 0x8000) && (g.regs[1] & 3) != 3;
+}
+
+static int rdy_idle_level(void) { return ((g.regs[1] >> 3) & 1) ? 0 : 1; }  // COMP_POL
+
+static avr_cycle_count_t rdy_release(struct avr_t *avr, avr_cycle_count_t when, void *param) {
+    (void)avr;
+    (void)when;
+    (void)param;
+    wiring_pull(g.h, RIG_ADS_RDY_PORT, RIG_ADS_RDY_BIT, rdy_idle_level());
+    return 0;
+}
+
 static avr_cycle_count_t conversion_done(struct avr_t *avr, avr_cycle_count_t when, void *param) {
     (void)param;
     struct harness *h = g.h;
@@ -115,8 +135,22 @@ static avr_cycle_count_t conversion_done(struct avr_t *avr, avr_cycle_count_t wh
     if (code > 32767) code = 32767;
     if (code < -32768) code = -32768;
     g.regs[0] = (uint16_t)(int16_t)code;
-    comparator((int16_t)code);
     h->ads_conversions++;
+    if (g.continuous && g.unread && rdy_mode()) {  // the one before was never read: a lost sample
+        h->ads_unread++;
+        if (g.trace) fprintf(g.trace, "ads_unread %.3f pc 0x%05x\n", harness_app_us(h, avr->cycle), avr->pc);
+    }
+    g.unread = 1;
+    g.done_cycle = avr->cycle;
+    if (rdy_mode()) {
+        if (g.continuous) {
+            wiring_pull(h, RIG_ADS_RDY_PORT, RIG_ADS_RDY_BIT, !rdy_idle_level());
+            avr_cycle_timer_register(avr, ADS1115_RDY_PULSE_CYCLES, rdy_release, NULL);
+            h->ads_rdy_pulses++;
+        }
+    } else {
+        comparator((int16_t)code);
+    }
     if (g.continuous) return when + conversion_cycles();
     g.regs[1] |= 0x8000;  // OS = 1: idle
     g.converting = 0;
@@ -204,6 +238,11 @@ static void on_twi(struct avr_irq_t *irq, uint32_t value, void *param) {
     if (msg & TWI_COND_READ) {
         // The master asks for the next byte: MSB first, then LSB, then repeat.
         uint16_t v = g.regs[g.pointer];
+        if (g.pointer == 0 && !(g.write_index & 1) && g.unread) {  // the MSB of a fresh conversion
+            const double us = (double)(g.h->avr->cycle - g.done_cycle) * 1e6 / HZ_CPU;
+            if (us > g.h->ads_read_latency_max_us) g.h->ads_read_latency_max_us = us;
+            g.unread = 0;
+        }
         if (g.pointer == 1) v = (uint16_t)((v & 0x7FFF) | (g.converting || g.continuous ? 0 : 0x8000));
         const uint8_t byte = (g.write_index & 1) ? (uint8_t)v : (uint8_t)(v >> 8);
         g.write_index++;
@@ -241,6 +280,7 @@ void ads1115_attach(struct harness *h, uint8_t address7, double rate_error, FILE
     g.regs[1] = 0x8583;  // power-on default config: single-shot, powered down
     g.regs[2] = 0x8000;
     g.regs[3] = 0x7FFF;
+    wiring_pull(h, RIG_ADS_RDY_PORT, RIG_ADS_RDY_BIT, 1);  // the board's pull-up
     g.twi_in = avr_io_getirq(h->avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_INPUT);
     avr_irq_register_notify(avr_io_getirq(h->avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_OUTPUT), on_twi, NULL);
     avr_irq_register_notify(avr_io_getirq(h->avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_STATUS), on_twi_status, NULL);

@@ -22,7 +22,10 @@
 //    t1/t2): shorter pulses are counted as violations. A new word replaces an unread one,
 //    but not one being clocked out: the output register holds until the read completes
 //    and that conversion's word is lost. Clocking with nothing ready is a partial read.
-//  - SDO is high impedance with /CS high (the firmware's pull-up then reads 1); /CS has
+//  - SDO is high impedance with /CS high (the firmware's pull-up then reads 1), driven
+//    high from the wake until a word is ready (without that a floating SDO read 0 in
+//    simavr, the firmware clocked "words" out of nothing, and a conversion finishing
+//    mid-clocking left a read half done that blocked every later word); /CS has
 //    a pull-up on the board, so the part sleeps while the AVR resets.
 #include <string.h>
 
@@ -106,9 +109,12 @@ static void on_cs(struct avr_irq_t *irq, uint32_t value, void *param) {
     if (low == g.cs_low) return;
     g.cs_low = low;
     avr_cycle_timer_cancel(g.h->avr, conversion, NULL);
-    if (low) {  // wake: the filter starts empty
+    if (low) {  // wake: the filter starts empty; SDO drives high until the first word is ready
         memset(g.history, 0, sizeof g.history);
         g.filled = 0;
+        g.ready = 0;
+        g.reading = 0;
+        drive_sdo(1);
         avr_cycle_timer_register(g.h->avr, g.conversion_cycles, conversion, NULL);
     } else {
         g.ready = 0;

@@ -54,7 +54,8 @@ struct harness {
     uint64_t twi_status_fixes, twi_transactions, twi_naks;
     uint64_t twi_starts, twi_stops, twi_bytes, twi_naks_injected, twi_stretched_bytes;
     uint64_t twi_stuck_events, twi_manual_clocks, twi_releases;
-    uint64_t ads_conversions, ads_alerts, cs_conversions, cs_words_read, cs_partial_reads;
+    uint64_t ads_conversions, ads_alerts, ads_rdy_pulses, ads_unread, cs_conversions, cs_words_read, cs_partial_reads;
+    double ads_read_latency_max_us;  // continuous mode: conversion end to the read of its result
     uint64_t cs_od_words, cs_sclk_violations;
     uint64_t plant_queries;
     uint64_t resets;               // hardware resets after power-on (DTR, watchdog)

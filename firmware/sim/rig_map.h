@@ -28,6 +28,12 @@
 #define RIG_SDA_PORT 'D'
 #define RIG_SDA_BIT 1
 
+// ADS1115 ALERT/RDY (open drain, the board's pull-up) on INT4, as PINS_ADS_RDY_* in hal/pins.h.
+#define RIG_ADS_RDY_PORT 'E'
+#define RIG_ADS_RDY_BIT 4
+// Its conversion-ready pulse: ~8 us low (data sheet SBAS444, 9.3.8), in cycles at 16 MHz.
+#define ADS1115_RDY_PULSE_CYCLES 128
+
 // ADS1115 7-bit I2C address (ADDR pin to GND), as firmware/config.h ADS1115_ADDRESS.
 #define RIG_ADS1115_ADDRESS 0x48
 

@@ -86,10 +86,13 @@ int summary_write(const struct harness *h, const char *path, const char *elf, co
             (unsigned long long)h->twi_naks_injected, (unsigned long long)h->twi_stretched_bytes,
             (unsigned long long)h->twi_stuck_events, (unsigned long long)h->twi_manual_clocks,
             (unsigned long long)h->twi_releases);
-    fprintf(f, "  \"adc\": {\"ads1115_conversions\": %llu, \"ads1115_alerts\": %llu, \"cs5513_conversions\": %llu,"
+    fprintf(f, "  \"adc\": {\"ads1115_conversions\": %llu, \"ads1115_alerts\": %llu, \"ads1115_rdy_pulses\": %llu,"
+               " \"ads1115_unread\": %llu, \"ads1115_read_latency_max_us\": %.1f,"
+               " \"cs5513_conversions\": %llu,"
                " \"cs5513_words_read\": %llu, \"cs5513_partial_reads\": %llu, \"cs5513_od_words\": %llu,"
                " \"cs5513_sclk_violations\": %llu, \"plant_queries\": %llu},\n",
             (unsigned long long)h->ads_conversions, (unsigned long long)h->ads_alerts,
+            (unsigned long long)h->ads_rdy_pulses, (unsigned long long)h->ads_unread, h->ads_read_latency_max_us,
             (unsigned long long)h->cs_conversions, (unsigned long long)h->cs_words_read,
             (unsigned long long)h->cs_partial_reads, (unsigned long long)h->cs_od_words,
             (unsigned long long)h->cs_sclk_violations, (unsigned long long)h->plant_queries);

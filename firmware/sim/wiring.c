@@ -38,7 +38,14 @@ static void raise_if_input(char port, int bit) {
     avr_ioport_state_t st;
     if (port_state(port, &st) < 0 || (st.ddr >> bit) & 1) return;
     const int i = index_of(port);
-    avr_raise_irq(avr_io_getirq(g.h->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit), (g.value[i] >> bit) & 1);
+    const int level = (g.value[i] >> bit) & 1;
+    avr_irq_t *irq = avr_io_getirq(g.h->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
+    // avr_reset() zeroes PINx but the pin's IRQ keeps its last value, and raising an IRQ
+    // to the value it holds notifies nobody: the PIN register would keep the 0 (the
+    // firmware then read the CS5513's idle-high SDO as "word ready" until the first
+    // conversion and clocked words out of nothing). Make the raise a change when it is one.
+    if (((st.pin >> bit) & 1) != level) irq->value = !level;
+    avr_raise_irq(irq, level);
 }
 
 void wiring_attach(struct harness *h) {

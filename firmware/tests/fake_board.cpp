@@ -9,16 +9,18 @@ namespace fw {
 
 FakeBoard::FakeBoard()
     : step_ring_size(32), tx_ring_size(512), tx_drain_bytes_per_ms(0), reason(2), position_counts(1000),
-      position_start_fails(false), position_poll_fails(false), position_latency_us(0), resistance_counts(50000),
+      position_start_fails(false), position_poll_fails(false), position_latency_us(0), position_conversion_us(1163),
+      resistance_counts(50000),
       resistance_flags(0), resistance_start_fails(false), resistance_poll_fails(false), resistance_latency_us(0),
       step_glitch(0), kept_valid(false), kept_steps(0), uart_overrun_count(0), uart_frame_error_count(0),
       i2c_recovery_count(0), now(0), position(0), min_position(0), max_position(0), steps_executed(0),
       min_interval_ticks(0xFFFFFFFFUL), heater_mV(0), heater_requested_mV(0), sense_on(false), motor_enabled(false),
-      kicks(0), interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), underruns(0),
+      kicks(0), continuous_reads(0), interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), underruns(0),
       truncations(0), record_steps(0), record_valid(false), record_writes(0), rx_head_(0), rx_count_(0),
       tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), carry_(0), dir_(1),
       expect_more_(false), position_busy_(false),
-      position_started_(0), resistance_busy_(false), resistance_started_(0), sense_since_(0) {}
+      position_started_(0), resistance_busy_(false), resistance_started_(0), sense_since_(0), continuous_(false),
+      continuous_since_(0), conversions_taken_(0) {}
 
 void FakeBoard::advance_us(uint64_t us) {
     const uint64_t target = now + us;
@@ -190,6 +192,29 @@ int8_t FakeBoard::position_poll(int16_t& counts) {
     }
     if (now - position_started_ < position_latency_us) return 0;
     position_busy_ = false;
+    counts = position_counts;
+    return 1;
+}
+
+bool FakeBoard::position_continuous(bool on) {
+    if (position_start_fails) return false;
+    continuous_ = on;
+    continuous_since_ = now;
+    conversions_taken_ = 0;
+    return true;
+}
+
+uint8_t FakeBoard::position_ready() {
+    if (!continuous_ || position_conversion_us == 0) return 0;
+    const uint64_t done = (now - continuous_since_) / position_conversion_us;
+    const uint64_t fresh = done - conversions_taken_;
+    conversions_taken_ = done;
+    return static_cast<uint8_t>(fresh > 255 ? 255 : fresh);
+}
+
+int8_t FakeBoard::position_read(int16_t& counts) {
+    if (!continuous_ || position_poll_fails) return -1;
+    ++continuous_reads;
     counts = position_counts;
     return 1;
 }

@@ -39,6 +39,7 @@ public:
     bool position_start_fails;
     bool position_poll_fails;
     uint32_t position_latency_us;
+    uint32_t position_conversion_us;  // continuous mode: a conversion (ALERT/RDY pulse) every this long
     int32_t resistance_counts;
     uint8_t resistance_flags;
     bool resistance_start_fails;
@@ -63,6 +64,7 @@ public:
     bool sense_on;
     bool motor_enabled;
     uint32_t kicks;
+    uint32_t continuous_reads;       // position_read() calls in continuous mode
     uint32_t interlock_violations;   // heater switched on while sense current was on
     uint32_t sense_refusals;         // sense_current(true) refused (heater on)
     uint32_t unsettled_conversions;  // resistance started without a settled sense current
@@ -98,6 +100,9 @@ public:
     uint16_t heater_set_mV(uint16_t mV) override;
     bool sense_current(bool on) override;
     bool position_start() override;
+    bool position_continuous(bool on) override;
+    uint8_t position_ready() override;
+    int8_t position_read(int16_t& counts) override;
     int8_t position_poll(int16_t& counts) override;
     bool resistance_start() override;
     int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
@@ -139,6 +144,9 @@ private:
     bool resistance_busy_;
     uint64_t resistance_started_;
     uint64_t sense_since_;
+    bool continuous_;
+    uint64_t continuous_since_;
+    uint64_t conversions_taken_;  // continuous conversions position_ready() has reported
 };
 
 }  // namespace fw

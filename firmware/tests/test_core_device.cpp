@@ -173,7 +173,7 @@ TEST(core_device_check_order) {
     s = h.heater(3, cfg::MAX_HEATER_MV + 1);
     CHECK_EQ(h.ack_status(s, proto::SetHeater::ID), st::LIMIT_EXCEEDED);
     s = h.sampling(3, cfg::MIN_SAMPLE_PERIOD_US - 1);
-    CHECK_EQ(h.ack_status(s, proto::SetSampling::ID), st::BAD_ARGUMENT);
+    CHECK_EQ(h.ack_status(s, proto::SetSampling::ID), st::TOO_FAST_FOR_SENSOR);
     s = h.sampling(3, 0);
     CHECK_EQ(h.ack_status(s, proto::SetSampling::ID), st::OK);
     // fill the queue: QUEUE_FULL comes last

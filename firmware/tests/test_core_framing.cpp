@@ -64,8 +64,8 @@ TEST(core_golden_messages_parse_and_reencode) {
         }
         CHECK_EQ(frames, 1);
         CHECK_EQ(p.seq(), g.seq);
-        CHECK_EQ(p.payload_len(), proto::payload_size(p.msg_id()));
-        int64_t fields[16];
+        CHECK_EQ(p.payload_len(), proto::payload_length(p.msg_id(), p.payload()));
+        int64_t fields[proto::MAX_DECODED_FIELDS];
         uint8_t nf = proto::decode_fields(p.msg_id(), p.payload(), fields);
         CHECK_EQ(nf, g.n_fields);
         for (uint8_t f = 0; f < nf && f < g.n_fields; ++f) {

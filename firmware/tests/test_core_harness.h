@@ -16,7 +16,7 @@ namespace core_test {
 struct Reply {
     uint8_t id;
     uint16_t seq;
-    int64_t f[16];
+    int64_t f[proto::MAX_DECODED_FIELDS];
     uint8_t nf;
 };
 

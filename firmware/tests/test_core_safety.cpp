@@ -152,7 +152,7 @@ TEST(core_safety_heater_and_sense_never_together) {
     h.keepalive = true;
     h.board.resistance_latency_us = 3000;
     h.boot();
-    h.sampling(1, cfg::MIN_SAMPLE_PERIOD_US);
+    h.sampling(1, cfg::SINGLE_SHOT_MIN_PERIOD_US);
     for (int i = 0; i < 40; ++i) {
         h.run_us(1700 + 137 * static_cast<uint32_t>(i % 7));
         h.heater(static_cast<uint16_t>(10 + i), static_cast<uint16_t>(i % 2 ? 0 : 4000));

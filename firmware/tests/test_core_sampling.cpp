@@ -40,8 +40,8 @@ TEST(core_sampling_grid_and_fields) {
 TEST(core_sampling_no_segment_before_any) {
     Harness h;
     h.boot();
-    h.sampling(0xFFFF, cfg::MIN_SAMPLE_PERIOD_US);
-    h.run_us(cfg::MIN_SAMPLE_PERIOD_US + 2500);
+    h.sampling(0xFFFF, cfg::SINGLE_SHOT_MIN_PERIOD_US);
+    h.run_us(cfg::SINGLE_SHOT_MIN_PERIOD_US + 2500);
     int i = h.find(proto::Sample::ID);
     CHECK(i >= 0);
     if (i >= 0) CHECK_EQ(h.replies[i].f[8], 0xFFFF);
@@ -110,7 +110,7 @@ TEST(core_sampling_drops_when_tx_full_and_counter_advances) {
     h.board.tx_ring_size = 64;
     h.board.tx_drain_bytes_per_ms = 10;  // too slow for a 36-byte SAMPLE every 3 ms
     h.boot();
-    h.sampling(1, cfg::MIN_SAMPLE_PERIOD_US);
+    h.sampling(1, cfg::SINGLE_SHOT_MIN_PERIOD_US);
     h.clear();
     h.run_us(300000);
     CHECK(h.dev.samples_dropped() > 0);

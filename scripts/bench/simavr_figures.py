@@ -11,11 +11,11 @@ summary, its trace of ADS1115 conversion starts and the frames the host received
     pulse checks and the SAMPLE timestamp error (|t_us - the conversion's real start|);
     a rate is "clean" with no underrun, no sample lost, no violation, every step counted
     and the timestamps within 100 us; the same at the device's shortest sampling period
-    (IDENTITY min_sample_period_us): IDENTITY's max_rate_steps_per_s must not exceed the
+    (single-shot, 3 ms): IDENTITY's max_rate_steps_per_s must not exceed the
     highest rate with every rate up to it clean there;
   * sample-period jitter: intervals between the ADS1115 conversion starts, idle and at
     each rate;
-  * the sampling floor: the device refuses a period 0.5 ms below it;
+  * the sampling floor: the device refuses a period 1 us below IDENTITY min_sample_period_us;
   * heater: the voltage actually applied (the gate's duty integrated on Timer2's
     (OCR2A + 1)/256 scale) against the request and against what SAMPLE reports;
   * host silent: heater off after the watchdog trip, motor and sense current released
@@ -46,6 +46,7 @@ from tsa_bench.bench import load_bench
 from tsa_bench.device import BenchClient
 from tsa_bench.motion import TrapezoidProfile
 from tsa_bench.protocol import encode, msg
+from tsa_bench.protocol.blocks import SINGLE_SHOT_MIN_PERIOD_US
 from tsa_bench.simavr import SimavrBench, simavr_settings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -202,7 +203,10 @@ def main() -> int:
         rate_results.append(r)
         summaries.append(r["summary"])
         jitter.append(jitter_row(f"moving {rate:g} turn/s", r["summary"], args.period_ms))
-    fastest = ident.min_sample_period_us
+    # the shortest single-shot period (each SAMPLE stamped at its conversion's start, checked
+    # against the trace); shorter ones sample continuously: scripts/bench/wire_limit.py
+    fastest = max(ident.min_sample_period_us, SINGLE_SHOT_MIN_PERIOD_US)
+    floor = ident.min_sample_period_us
     fast_results = [rate_run(rate, fastest, args.turns, args.accel) for rate in rates]
     summaries += [r["summary"] for r in fast_results]
     for r in rate_results + fast_results:
@@ -264,13 +268,13 @@ def main() -> int:
     summaries.append(s.bench.summary)
 
     with Session(build=False) as s:                     # the SAMPLE stream at the shortest period
-        below = s.client.command(msg.SetSampling(1, fastest - 500), check=False)
+        below = s.client.command(msg.SetSampling(1, floor - 1), check=False)
         s.command(msg.SetSampling(2, fastest))
         s.wait_device_s(0.3)
         first, bytes0 = len(s.samples), s.rx_bytes
         s.wait_device_s(2.0)
     if below.status == msg.Status.OK:
-        failures.append(f"a {fastest - 500} us sampling period accepted, below min_sample_period_us")
+        failures.append(f"a {floor - 1} us sampling period accepted, below min_sample_period_us")
     window = s.samples[first:]
     span_s = (window[-1].t_us - s.samples[first - 1].t_us) * 1e-6
     throughput = (s.rx_bytes - bytes0) / span_s
@@ -308,8 +312,9 @@ def main() -> int:
     for row in jitter:
         print("  " + row)
     top = max(fast_results, key=lambda r: r["v"])
-    print(f"\nsampling floor: {fastest / 1000:g} ms (IDENTITY min_sample_period_us); moving at {top['v']} steps/s "
-          f"there {top['lost']} slots skipped, {top['underruns']} underruns; {(fastest - 500) / 1000:g} ms "
+    print(f"\nshortest single-shot period: {fastest / 1000:g} ms; moving at {top['v']} steps/s "
+          f"there {top['lost']} slots skipped, {top['underruns']} underruns; sampling floor (IDENTITY "
+          f"min_sample_period_us) {floor} us, {floor - 1} us "
           f"{'accepted' if below.status == msg.Status.OK else 'refused: ' + msg.Status(below.status).name.lower()}")
     print("\nheater: voltage applied (the gate's duty integrated on Timer2's (OCR2A+1)/256 scale, "
           f"{supply_V:g} V supply):")

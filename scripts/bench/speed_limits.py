@@ -21,6 +21,7 @@ runs, peak RSS of the child from ``wait4``), printed as one table:
   carries, against the ADS1115's 860 samples/s.
 
     python3 scripts/bench/speed_limits.py [--repeat 3] [--long] [--keep DIR] [--baseline CHECKOUT]
+                                          [--skip-diagnose] [--skip-fit]
 
 ``--baseline`` measures another checkout's ``run lifetime.yaml`` alternately with this
 one (``git worktree add /tmp/base main``), so a speed-up is read side by side.
@@ -149,14 +150,27 @@ def scaled_protocol(factor: int, where: Path) -> Path:
     return path
 
 
-def file_figures(path: Path) -> tuple[int, float, float, float]:
-    """(samples, device s, file bytes per sample, sample-column bytes per sample)."""
+def file_figures(path: Path) -> tuple[int, float, float, float, float]:
+    """(samples, device s, file bytes per sample, sample-column bytes per sample, segment-table
+    bytes per sample: /segments with its /segment_texts, texts' heap included)."""
     import h5py
     with h5py.File(path, "r") as f:
         n = len(f["samples/t"])
         cols = sum(d.id.get_storage_size() for d in f["samples"].values())
         device_s = float(f.attrs["duration_s"])
-    return n, device_s, path.stat().st_size / n, cols / n
+        seg = 0
+        for name in ("segments", "segment_texts"):
+            if name not in f:
+                continue
+            ds = f[name]
+            seg += ds.id.get_storage_size()
+            texts = [k for k in ds.dtype.names or () if ds.dtype[k].kind == "O"]   # variable-length: their heap
+            data = ds[()]
+            if ds.dtype.kind == "O":
+                seg += sum(len(v) for v in data)
+            for k in texts:
+                seg += sum(len(v) for v in data[k])
+    return n, device_s, path.stat().st_size / n, cols / n, seg / n
 
 
 def frame_figures() -> tuple[int, int, float]:
@@ -178,6 +192,7 @@ def main() -> None:
                     help=f"models fitted at 1x / 4x / 10x, comma-separated (default: {','.join(FIT_MODELS)}; "
                          "'none' skips them)")
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds before one fit is given up (printed)")
+    ap.add_argument("--skip-fit", action="store_true", help="leave out the fit figures (same as --fits none)")
     ap.add_argument("--baseline", type=Path, default=None,
                     help="another checkout (e.g. `git worktree add /tmp/base main`): its `run lifetime.yaml` "
                          "is measured too, alternating with this one, for a side-by-side speed-up")
@@ -204,7 +219,7 @@ def main() -> None:
             bw, _ = rss_of(run_file(args.baseline / "configs" / "protocols" / "lifetime.yaml", out), args.baseline)
             base_walls.append(bw)
             base_cpus.append(LAST_CPU[0])
-    samples, device_s, bps, col_bps = file_figures(tmp / "lifetime-0.h5")
+    samples, device_s, bps, col_bps, seg_bps = file_figures(tmp / "lifetime-0.h5")
     pw, _ = repeated([sys.executable, "-c", PLANT_LOOP, str(samples)], n)
     pcpu = LAST_CPU[0]
     row(f"`run lifetime.yaml` ({device_s / 3600:.2f} h device time, {samples:,} samples), s",
@@ -230,12 +245,14 @@ def main() -> None:
         out10 = tmp / "lifetime-x10.h5"
         out10.unlink(missing_ok=True)
         w10, r10 = rss_of(run_file(p10, out10))
-        n10, d10, bps10, _ = file_figures(out10)
+        n10, d10, bps10, _, _ = file_figures(out10)
         rss10 = f" / 10x {r10:.0f} MiB ({(r10 / min(rss) - 1) * 100:+.0f} %; 10x run {w10:.1f} s, " \
                 f"{d10 / w10:,.0f}x real time)"
     row("`run` peak RSS lifetime" + (" / 10x lifetime" if args.long else "") + ", MiB",
         f"{mm(rss, '.0f')}{rss10}", "flat (10x within 10 % of 1x)")
-    row("run file size, B/sample", f"{bps:.1f}", f"sample columns alone (shuffle+gzip) {col_bps:.1f}")
+    row("run file size, B/sample", f"{bps:.1f} (of which /segments and its texts {seg_bps:.1f})"
+        + (f"; 10x lifetime {bps10:.1f}" if args.long else ""),
+        f"sample columns alone (shuffle+gzip) {col_bps:.1f}; target <= 15")
 
     if not args.skip_diagnose:
         files = [("1x", tmp / "lifetime-0.h5")] + ([("10x", tmp / "lifetime-x10.h5")] if args.long else [])
@@ -249,7 +266,7 @@ def main() -> None:
             row(f"`diagnose` {label} lifetime (wall, CPU, peak RSS)", text,
                 "10x: <= 30 s, <= 500 MiB" if label == "10x" else "-")
 
-    for model in [m for m in args.fits.split(",") if m and m != "none"]:
+    for model in [] if args.skip_fit else [m for m in args.fits.split(",") if m and m != "none"]:
         fits = []
         for k in (1, 4, 10):
             try:

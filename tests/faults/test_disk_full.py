@@ -41,12 +41,15 @@ def test_no_room_at_the_start_is_refused_before_anything_is_written(tmp_path):
 
 
 #: Runs `tsa-bench run` with the start check's estimate cut a hundredfold, so the run
-#: starts and the disk fills while it records (as when another program eats the space).
+#: starts and the disk fills while it records (as when another program eats the space);
+#: written uncompressed, so that the lifetime run's file (about 1 MB compressed) reaches the limit.
 FILL_MID_RUN = (
     "import runpy, sys\n"
     "from tsa_bench.store import space\n"
     "real = space.run_bytes\n"
     "space.run_bytes = lambda samples, segments: real(samples / 100, segments // 100)\n"
+    "from tsa_bench.store import hdf5\n"   # uncompressed: the file outgrows the limit mid-run
+    "hdf5.RunWriter.__init__.__kwdefaults__['compression_level'] = 0\n"
     "sys.argv = ['tsa-bench', 'run', *sys.argv[1:]]\n"
     "runpy.run_module('tsa_bench.cli', run_name='__main__')\n")
 

@@ -21,6 +21,7 @@ from tests.faults.mutations import (
     CSV_OPS, JSON_OPS, RUN_OPS, TEXT_OPS, apply_csv, apply_json, apply_text, mutate_run, write_text,
 )
 from tsa_bench.cli import main
+from tsa_bench.store import read_run
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL = ROOT / "configs/protocols/transient-steps.yaml"
@@ -139,8 +140,7 @@ def test_a_hold_longer_than_one_dwell_runs_as_several(tmp_path):
     invoke("validate", path, allowed=(0,))
     out = tmp_path / "r.h5"
     invoke("run", path, "--output", str(out), allowed=(0,))
-    with h5py.File(out) as f:
-        seg = f["segments"][()]
+    seg = read_run(out).segments
     hold = seg[seg["kind"] == b"hold"][0]
     assert hold["completed"] and hold["t_end"] - hold["t_start"] == pytest.approx(10_000, abs=1e-3)
     assert list(seg["index"]) == [0, 1, 2]

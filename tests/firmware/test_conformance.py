@@ -18,7 +18,7 @@ from tsa_bench.bench import load_bench
 from tsa_bench.device import BenchClient
 from tsa_bench.plan import load_plan_text
 from tsa_bench.runner import AutoOperator, Runner
-from tsa_bench.store import RunWriter
+from tsa_bench.store import RunWriter, read_run
 
 BENCH = load_bench(None)
 
@@ -73,9 +73,9 @@ steps:
         port.close()
     assert stop.exit_status == "success", stop.reason
     with h5py.File(tmp_path / "fw.h5") as f:
-        segs = f["segments"][()]
         turns, seg, heater = f["samples/turns"][()], f["samples/segment"][()], f["samples/heater_voltage"][()]
         resistance = f["samples/resistance"][()]
+    segs = read_run(tmp_path / "fw.h5").segments
     assert list(segs["index"]) == list(range(len(plan.segments))) and segs["completed"].all()
     holds = segs[segs["kind"] == b"hold"]
     assert np.allclose(holds["t_end"] - holds["t_start"], [2, 1, 1], atol=1e-3)
@@ -109,3 +109,23 @@ def test_firmware_core_agrees_on_the_new_behaviours(native_binary, scenario):
         assert fw["reported_mV"] == sim["reported_mV"] == [applied_mV(v) for v in sc.HEATER_REQUESTS_MV]
         assert sim["reported_mV"][0] == 1984 and sim["reported_mV"][1] == 992   # 2 V, 1 V: not off, not 2.12 V
         assert fw["off_mV"] == sim["off_mV"] == 0
+
+
+def test_firmware_core_samples_continuously_like_the_simulated_device(native_binary):
+    """One ADS1115 conversion as the period: both send 860 samples/s in SAMPLE_BLOCK
+    frames without a counter gap, with resistance words at the CS5513's rate."""
+    from tests import conformance_scenarios as sc
+
+    sim = sc.continuous_sampling(Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0))
+    fw_port = NativeFirmwarePort(native_binary, "--virtual", "--cs5513-us", "19125")
+    try:
+        fw_port.read(64)  # its BOOT
+        fw = sc.continuous_sampling(Exchange(fw_port, settle_s=0.05, first_reply_s=1.0))
+    finally:
+        fw_port.close()
+    assert fw["log"] == sim["log"]
+    for obs in (sim, fw):
+        assert obs["continuous"] and obs["samples"] > 700
+        assert obs["rate_per_s"] == pytest.approx(860, rel=0.01)
+        assert obs["blocks"] <= obs["samples"] / 6 + 2
+        assert obs["resistance_per_s"] == pytest.approx(52.3, rel=0.1)

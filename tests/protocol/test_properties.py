@@ -24,7 +24,14 @@ def field_strategy(code: str):
 def messages(draw):
     spec = draw(st.sampled_from(list(MESSAGES.values())))
     codes = spec.struct.format.lstrip("<")
-    return spec.cls(*(draw(field_strategy(c)) for c in codes))
+    fields = [draw(field_strategy(c)) for c in codes]
+    if spec.entry_struct is None:
+        return spec.cls(*fields)
+    n = draw(st.integers(0, spec.max_entries))   # a variable-length message: its count field says n
+    fields[spec.count_index] = n
+    ecodes = spec.entry_struct.format.lstrip("<")
+    entries = tuple(spec.entry_cls(*(draw(field_strategy(c)) for c in ecodes)) for _ in range(n))
+    return spec.cls(*fields, entries)
 
 
 @given(messages(), st.integers(0, 0xFFFF))

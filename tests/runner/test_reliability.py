@@ -7,6 +7,7 @@ import numpy as np
 
 from tests.runner.faults import LossyPort
 from tests.runner.helpers import open_sim, plan_from_text, run_plan
+from tsa_bench.store import read_run
 
 SHORT = """
 name: short
@@ -31,8 +32,7 @@ def assert_executed_once_in_order(plan, path, end_tolerance_s: float = 0.05):
     move would show as a gap or a stretched segment). ``end_tolerance_s`` bounds the
     error of the last segment's end time, which is only known to the next heartbeat's
     QUEUE_STATUS when its SEGMENT_DONE event was lost on the line."""
-    with h5py.File(path) as f:
-        segs = f["segments"][()]
+    segs = read_run(path).segments
     assert list(segs["index"]) == list(range(len(plan.segments)))
     planned = [s.action.duration_s if s.kind == "hold" else None for s in plan.segments]
     for row, hold_s in zip(segs, planned):

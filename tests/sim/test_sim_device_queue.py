@@ -23,12 +23,14 @@ MAX_RATE, MAX_ACCEL = 5 * SPT, 100 * SPT
     (msg.MoveTo(0, -10 * SPT - 1, 1000, 1000), S.LIMIT_EXCEEDED),
     (msg.MoveBy(0, -10 * SPT - 1, 1000, 1000), S.LIMIT_EXCEEDED),
     (msg.SetHeater(0, 12001), S.LIMIT_EXCEEDED),
-    (msg.SetSampling(0, 2999), S.BAD_ARGUMENT),                   # below min_sample_period_us
-    (msg.SetSampling(0, 1), S.BAD_ARGUMENT),
+    (msg.SetSampling(0, 1162), S.TOO_FAST_FOR_SENSOR),            # below one ADS1115 conversion
+    (msg.SetSampling(0, 1), S.TOO_FAST_FOR_SENSOR),
     # accepted at the edges
     (msg.MoveTo(0, 100 * SPT, MAX_RATE, MAX_ACCEL), S.OK),
     (msg.MoveBy(0, -10 * SPT, MAX_RATE, MAX_ACCEL), S.OK),
     (msg.SetHeater(0, 12000), S.OK),
+    (msg.SetSampling(0, 1163), S.OK),                             # continuous, 860 samples/s
+    (msg.SetSampling(0, 2999), S.OK),
     (msg.SetSampling(0, 3000), S.OK),
     (msg.SetSampling(0, 0), S.OK),
     (msg.Dwell(0, 0), S.OK),

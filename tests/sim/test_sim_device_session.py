@@ -27,7 +27,7 @@ def test_hello_answers_identity_from_the_bench(device):
         min_twist_steps=-10 * SPT, max_twist_steps=100 * SPT,       # limits in turns x steps/turn
         max_rate_steps_per_s=5 * SPT, max_accel_steps_per_s2=100 * SPT,
         max_heater_mV=12000, queue_slots=16, watchdog_ms=2000, flags=int(msg.DeviceFlags.SIMULATED),
-        min_sample_period_us=3000, fault_release_ms=10000)]
+        min_sample_period_us=1163, fault_release_ms=10000)]
 
 
 @pytest.mark.parametrize("hello", [msg.Hello(msg.PROTOCOL_VERSION + 1, msg.CATALOGUE_HASH),

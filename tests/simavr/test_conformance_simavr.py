@@ -82,6 +82,22 @@ def test_period_shorter_than_a_conversion_keeps_every_slot(firmware_dir, scenari
     assert abs(fil["measured_fraction"] - sim["measured_fraction"]) < 0.15
 
 
+def test_continuous_sampling_at_the_ads1115_limit(firmware_dir):
+    """Sampling period 1163 us: the ADS1115 in continuous mode paced by ALERT/RDY, 860
+    samples/s in SAMPLE_BLOCK frames with no counter gap, resistance at the CS5513's own
+    rate (19125 us a word in the harness: 52.3 per second), on both backends."""
+    sim, fil, summary = run_both(sc.continuous_sampling, firmware_dir)
+    assert_same_log(fil["log"], sim["log"])
+    for obs in (sim, fil):
+        assert obs["continuous"] and obs["samples"] > 700
+        assert obs["rate_per_s"] == pytest.approx(860, rel=0.01)
+        assert obs["blocks"] <= obs["samples"] / 6 + 2
+    assert sim["resistance_per_s"] == pytest.approx(52.3, rel=0.05)
+    assert fil["resistance_per_s"] == pytest.approx(sim["resistance_per_s"], rel=0.25)
+    assert summary["adc"]["ads1115_rdy_pulses"] >= fil["samples"]
+    assert summary["violations"]["uart_rx_overrun"] == 0
+
+
 def test_stop_at_speed_decelerates_at_the_limit(firmware_dir):
     """STOP at 16,000 steps/s: both decelerate at the device's limit (~400 steps) to the
     position EVENT stopped announces; the A4988 agrees. (Before: an instant stop at any

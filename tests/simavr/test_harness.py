@@ -28,6 +28,9 @@ def test_rig_map_matches_the_firmware_pin_map(repo_root):
              "HEATER": "PIN_HEATER"}
     for rig_name, pin in pairs.items():
         assert (defs[f"RIG_{rig_name}_PORT"].strip("'"), int(defs[f"RIG_{rig_name}_BIT"])) == pins[pin], rig_name
+    pins_h = (repo_root / "firmware/hal/pins.h").read_text()
+    rdy = re.search(r"#define PINS_ADS_RDY_PIN PIN([A-L])\s+#define PINS_ADS_RDY_BIT (\d)", pins_h)
+    assert (defs["RIG_ADS_RDY_PORT"].strip("'"), int(defs["RIG_ADS_RDY_BIT"])) == (rdy.group(1), int(rdy.group(2)))
     config = (repo_root / "firmware/config.h").read_text()
     assert int(defs["RIG_ADS1115_ADDRESS"], 16) == int(re.search(r"ADS1115_ADDRESS = (0x\w+)", config).group(1), 16)
     supply_mV = int(re.search(r"HEATER_SUPPLY_MV = (\d+)", config).group(1))

@@ -11,7 +11,7 @@ import pytest
 from tsa_bench.runner.documents import (
     SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord,
 )
-from tsa_bench.store import RunWriter
+from tsa_bench.store import RunWriter, read_run
 from tsa_bench.store.inspect import RunFileError, inspect_run
 
 REQUIRED_UNITS = {"t": "s", "turns": "turn", "length": "mm", "resistance": "ohm", "heater_voltage": "V",
@@ -59,11 +59,17 @@ def test_file_meets_contract(tmp_path):
             assert f["samples"][name].attrs["units"] == units
             assert f["samples"][name].chunks is not None and f["samples"][name].maxshape == (None,)
         assert np.isnan(f["samples/resistance"][1])
-        segs = f["segments"][()]
-        assert list(segs["index"]) == [0, 1] and segs["kind"][1] == b"hold"
-        assert json.loads(segs["params"][0]) == {"target_turns": 1.0}
+        segs = f["segments"][()]   # coded: kind names in an attribute, texts stored once in /segment_texts
+        kinds, texts = json.loads(f["segments"].attrs["kind_names"]), f["segment_texts"][()]
+        assert list(segs["index"]) == [0, 1] and kinds[segs["kind"][1]] == "hold"
+        assert json.loads(texts[segs["params"][0]]) == {"target_turns": 1.0}
+        assert texts[segs["source"][1]] == b"p.yaml:4"
         assert segs["cycle"][0] == -1 and segs["cycle"][1] == 2
+        assert f["segments"].compression == "gzip"
         assert f["events"][0]["kind"] == b"prompt"
+    segs = read_run(path).segments   # read back with texts in every row
+    assert list(segs["kind"]) == [b"move", b"hold"] and list(segs["source"]) == [b"p.yaml:3", b"p.yaml:4"]
+    assert json.loads(segs["params"][1]) == {"duration_s": 0.9}
 
 
 def test_segment_end_flushes(tmp_path):

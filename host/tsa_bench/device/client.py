@@ -34,6 +34,7 @@ from tsa_bench.device.errors import (
 )
 from tsa_bench.device.link import FrameSequencer, LinkStats
 from tsa_bench.protocol import MessageDecoder, encode, msg, spec_of
+from tsa_bench.protocol.blocks import expand, refusal_reason
 
 READ_CHUNK = 4096
 
@@ -93,7 +94,7 @@ class BenchClient:
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
         frames = self._sequencer.push(frames)
-        out = [f.message for f in frames]
+        out = expand(f.message for f in frames)   # a SAMPLE_BLOCK becomes its samples
         for late in self._sequencer.take_late():
             if isinstance(late.message, msg.Ack):
                 self._late_acks.append(late.message)  # may still answer the command awaited now
@@ -219,7 +220,8 @@ class BenchClient:
                 if check and ack.status != msg.Status.OK:
                     raise CommandRefused(spec.name, ack.status,
                                          f"device refused {spec.name} {tuple(message)}: "
-                                         f"{msg.Status(ack.status).name.lower()}")
+                                         f"{msg.Status(ack.status).name.lower()}"
+                                         f"{refusal_reason(message, ack.status)}")
                 return ack
             waited_s = time.monotonic() - wall0
             if dev0 is not None and self._last_dev_us is not None:

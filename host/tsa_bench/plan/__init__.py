@@ -1,6 +1,8 @@
 """Experiment protocols: load YAML protocols, validate them against bench limits, and
-compile them into a flat list of segments (moves, holds, heater and sampling changes,
-operator prompts) with position-pinned error reports.
+compile them into a sequence of segments (moves, holds, heater and sampling changes,
+operator prompts) with position-pinned error reports. Every segment is checked when the
+protocol loads; ``plan.segments`` expands repeat blocks again on demand (memory flat in
+the number of cycles).
 
 Typical use::
 
@@ -13,7 +15,7 @@ from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, S
 from tsa_bench.plan.errors import PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.loader import DEFAULT_SAMPLING_PERIOD_S, load_plan, load_plan_text
-from tsa_bench.plan.model import Plan, PlanSummary
+from tsa_bench.plan.model import Plan, PlanSummary, Segments
 from tsa_bench.plan.report import format_duration, format_summary
 
 __all__ = [
@@ -29,6 +31,7 @@ __all__ = [
     "PlanSummary",
     "Prompt",
     "Segment",
+    "Segments",
     "SetHeater",
     "SetSampling",
     "Settle",

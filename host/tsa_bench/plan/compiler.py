@@ -1,26 +1,36 @@
-"""Expand an operation tree into the flat, executable segment list.
+"""Expand an operation tree into the executable segment list, lazily.
 
 Contract: the run starts at 0 turns; ``move_by`` targets are the previous target plus
 the step's turns (rounded to 1e-9 turns so repeated fractional steps do not drift).
 Every resolved target is checked against the twist limits; an out-of-range step is
 reported once (with the first repeat cycle it happens in and how often it recurs).
 Segments in a repeat carry the 0-based iteration of the innermost repeat as ``cycle``.
+
+Memory: :func:`compile_ops` walks the whole expansion once (every segment is checked,
+none is kept) and returns :class:`~tsa_bench.plan.model.Segments`, a sequence that
+expands ``repeat`` and ``for_each`` blocks again on demand, from checkpoints of the walk
+taken every :data:`CHECKPOINT_SEGMENTS` segments, keeping only a bounded number of
+expanded segments. The walk of a checkpoint onwards is the same code as the checking
+walk, so the segments read later are exactly those that were checked.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from yaml import Node
 
 from tsa_bench.plan.actions import Move, Segment, TrackLength
 from tsa_bench.plan.errors import ErrorSink
 from tsa_bench.plan.limits import Limits
+from tsa_bench.plan.model import Segments
 from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
 
 #: Upper bound on the expanded plan size (protects memory against e.g. nested huge counts).
 MAX_SEGMENTS = 1_000_000
+#: Segments between two checkpoints of the expansion (also the unit expanded on demand).
+CHECKPOINT_SEGMENTS = 1024
 
 _TARGET_DECIMALS = 9
 
@@ -52,52 +62,91 @@ class _TwistViolation:
     occurrences: int = 1
 
 
-@dataclass
-class _Compiler:
-    limits: Limits
-    sink: ErrorSink
-    segments: list[Segment] = field(default_factory=list)
-    position_turns: float | None = 0.0   # None: unknown after an invalid motion step
-    violations: dict[int, _TwistViolation] = field(default_factory=dict)
-    tracked_at: str | None = None        # source of the track_length that made the twist unknown
+#: A resumable point of the walk: (stack frames, twist, track_length source, next index).
+#: A frame is (ops walked, next op, cycle of its segments, enclosing loop or None, iteration).
+Checkpoint = tuple[tuple[tuple, ...], "float | None", "str | None", int]
 
-    def run(self, ops: Sequence[Op], cycle: int | None, trail: tuple[tuple[RepeatOp | ForEachOp, int], ...]) -> None:
-        segments = self.segments
-        for op in ops:
-            if type(op) is ActionOp:
-                segments.append(Segment(len(segments), op.action, cycle, op.source))
+
+class _Walker:
+    """Depth-first walk of the operation tree with an explicit stack, so that it can be
+    saved (:meth:`checkpoint`) and resumed. With a ``sink`` it checks (twist limits,
+    ``move_by`` after ``track_length``) as it goes; without one it only expands."""
+
+    def __init__(self, limits: Limits, sink: ErrorSink | None, start: Checkpoint) -> None:
+        self.limits, self.sink = limits, sink
+        frames, self.position_turns, self.tracked_at, self.index = start
+        self.stack = [list(fr) for fr in frames]   # None position: unknown after an invalid motion step
+        self.violations: dict[int, _TwistViolation] = {}
+
+    @classmethod
+    def at_start(cls, ops: Sequence[Op], limits: Limits, sink: ErrorSink | None) -> _Walker:
+        return cls(limits, sink, (((tuple(ops), 0, None, None, 0),), 0.0, None, 0))
+
+    def checkpoint(self) -> Checkpoint:
+        return tuple(tuple(fr) for fr in self.stack), self.position_turns, self.tracked_at, self.index
+
+    def next(self) -> Segment | None:
+        """The next segment, or None at the end of the plan."""
+        stack = self.stack
+        while stack:
+            frame = stack[-1]
+            ops, i = frame[0], frame[1]
+            if i >= len(ops):           # end of a body: next iteration of its loop, or leave it
+                stack.pop()
+                loop, it = frame[3], frame[4] + 1
+                if type(loop) is RepeatOp:
+                    if it < (loop.count or 1):
+                        stack.append([loop.body, 0, it, loop, it])
+                    elif loop.count is None:
+                        self.position_turns = None
+                elif type(loop) is ForEachOp and it < len(loop.bodies):
+                    stack.append([loop.bodies[it], 0, it, loop, it])
+                continue
+            frame[1] = i + 1
+            op = ops[i]
+            kind = type(op)
+            if kind is ActionOp:
                 if isinstance(op.action, TrackLength):  # the twist it ends at is decided while running
                     self.position_turns, self.tracked_at = None, op.source
-            elif type(op) is MoveOp:
-                if op.relative:
-                    pos = self.position_turns
-                    target = None if pos is None else round(pos + op.turns, _TARGET_DECIMALS)
-                    if pos is None and self.tracked_at is not None:
-                        self.sink.add(op.node, op.field, f"move_by after the track_length at {self.tracked_at}: "
-                                                         "the twist there is decided while running",
-                                      "move_to (an absolute twist)")
-                else:
-                    target = op.turns
-                self.position_turns = target
-                if not op.relative:
-                    self.tracked_at = None
+                return self._segment(op.action, frame[2], op.source)
+            if kind is MoveOp:
+                target = self._target(op)
                 if target is None:
                     continue
-                self._check_twist(op, target, trail)
-                move = Move(target, op.rate_turns_per_s, op.accel_turns_per_s2)
-                segments.append(Segment(len(segments), move, cycle, op.source))
-            elif type(op) is RepeatOp:
-                for c in range(op.count or 1):
-                    self.run(op.body, c, (*trail, (op, c)))
-                if op.count is None:
-                    self.position_turns = None
-            elif type(op) is ForEachOp:
-                for c, body in enumerate(op.bodies):
-                    self.run(body, c, (*trail, (op, c)))
-            else:  # LostTwistOp
+                if self.sink is not None:
+                    self._check_twist(op, target)
+                return self._segment(Move(target, op.rate_turns_per_s, op.accel_turns_per_s2), frame[2], op.source)
+            if kind is RepeatOp:
+                stack.append([op.body, 0, 0, op, 0])
+            elif kind is ForEachOp:
+                if op.bodies:
+                    stack.append([op.bodies[0], 0, 0, op, 0])
+            elif kind is LostTwistOp:
                 self.position_turns = None
+            else:
+                raise TypeError(f"the compiler does not know the operation {op!r}")
+        return None
 
-    def _check_twist(self, op: MoveOp, target: float, trail: tuple[tuple[RepeatOp | ForEachOp, int], ...]) -> None:
+    def _segment(self, action, cycle: int | None, source: str) -> Segment:
+        seg = Segment(self.index, action, cycle, source)
+        self.index += 1
+        return seg
+
+    def _target(self, op: MoveOp) -> float | None:
+        if op.relative:
+            pos = self.position_turns
+            target = None if pos is None else round(pos + op.turns, _TARGET_DECIMALS)
+            if pos is None and self.tracked_at is not None and self.sink is not None:
+                self.sink.add(op.node, op.field, f"move_by after the track_length at {self.tracked_at}: "
+                                                 "the twist there is decided while running",
+                              "move_to (an absolute twist)")
+        else:
+            target = op.turns
+            self.tracked_at = None
+        self.position_turns = target
+        return target
+
+    def _check_twist(self, op: MoveOp, target: float) -> None:
         hi, lo = self.limits.max_twist_turns, self.limits.min_twist_turns
         if (hi is None or target <= hi) and (lo is None or target >= lo):
             return
@@ -105,11 +154,12 @@ class _Compiler:
         if seen is not None:
             seen.occurrences += 1
             return
-        where = " > ".join(f"cycle {c} of the {'repeat' if isinstance(rep, RepeatOp) else 'for_each'} at "
-                           f"{rep.source}" for rep, c in trail)
+        where = " > ".join(f"cycle {fr[4]} of the {'repeat' if isinstance(fr[3], RepeatOp) else 'for_each'} at "
+                           f"{fr[3].source}" for fr in self.stack if fr[3] is not None)
         self.violations[id(op)] = _TwistViolation(op, target, where)
 
     def report(self) -> None:
+        assert self.sink is not None
         lo, hi = self.limits.min_twist_turns, self.limits.max_twist_turns
         allowed = f"{'-inf' if lo is None else f'{lo:g}'} .. {'inf' if hi is None else f'{hi:g}'} turns"
         for v in self.violations.values():
@@ -127,9 +177,27 @@ class _Compiler:
                           allowed)
 
 
-def compile_ops(ops: Sequence[Op], limits: Limits, sink: ErrorSink, steps_node: Node | None = None
-                ) -> tuple[Segment, ...]:
-    """Expand ``ops`` into segments, reporting twist-limit violations into ``sink``.
+class _Expansion:
+    """Expands the segments of one checkpoint span again (the :class:`Segments` source)."""
+
+    def __init__(self, limits: Limits, checkpoints: list[Checkpoint]) -> None:
+        self.limits, self.checkpoints = limits, checkpoints
+
+    def span(self, k: int) -> list[Segment]:
+        """Segments ``k * CHECKPOINT_SEGMENTS`` up to the next checkpoint (or the end)."""
+        walker = _Walker(self.limits, None, self.checkpoints[k])
+        out: list[Segment] = []
+        for _ in range(CHECKPOINT_SEGMENTS):
+            seg = walker.next()
+            if seg is None:
+                break
+            out.append(seg)
+        return out
+
+
+def compile_ops(ops: Sequence[Op], limits: Limits, sink: ErrorSink, steps_node: Node | None = None) -> Segments:
+    """Check the expansion of ``ops``, reporting twist-limit violations into ``sink``, and
+    return its lazily expanded :class:`Segments`.
 
     Refuses plans larger than :data:`MAX_SEGMENTS` (one error at ``steps_node``, no segments).
     """
@@ -137,8 +205,15 @@ def compile_ops(ops: Sequence[Op], limits: Limits, sink: ErrorSink, steps_node: 
     if size > MAX_SEGMENTS:
         sink.add(steps_node, "steps", f"protocol expands to {size:,} segments",
                  f"at most {MAX_SEGMENTS:,} segments")
-        return ()
-    compiler = _Compiler(limits, sink)
-    compiler.run(ops, None, ())
-    compiler.report()
-    return tuple(compiler.segments)
+        return Segments.empty()
+    walker = _Walker.at_start(ops, limits, sink)
+    checkpoints: list[Checkpoint] = []
+    step = walker.next
+    while True:
+        if walker.index % CHECKPOINT_SEGMENTS == 0:
+            checkpoints.append(walker.checkpoint())
+        if step() is None:
+            break
+    walker.report()
+    return Segments(walker.index, CHECKPOINT_SEGMENTS, _Expansion(limits, checkpoints).span)
+

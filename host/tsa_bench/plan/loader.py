@@ -25,7 +25,7 @@ from tsa_bench.documents import DocumentError, parse_yaml, read_text_file
 from tsa_bench.plan.compiler import compile_ops, outer_cycles
 from tsa_bench.plan.errors import ErrorSink, PlanError, PlanErrors
 from tsa_bench.plan.limits import Limits, loosening_problem
-from tsa_bench.plan.model import Plan
+from tsa_bench.plan.model import Plan, Segments
 from tsa_bench.plan.steps import (
     MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser, scalar_value,
 )
@@ -106,7 +106,7 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
     variables = _variables(reader, top.get("variables"))
     defaults = _defaults(reader, _substituted(reader, top.get("defaults"), variables, "defaults"), limits)
 
-    segments = ()
+    segments = Segments.empty()
     cycles = 0
     if "steps" in top:
         ops = StepParser(reader, limits, defaults, filename, variables).parse_steps(top["steps"], "steps")

@@ -10,12 +10,83 @@ decided while running, so the twist range is that of the moves.
 
 from __future__ import annotations
 
+from collections import OrderedDict
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, overload
 
 from tsa_bench.motion import TrapezoidProfile
 from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle, TrackLength
 from tsa_bench.plan.limits import Limits
+
+
+#: Most expanded segments a :class:`Segments` keeps at once (in spans of its checkpoint size).
+CACHED_SEGMENTS = 16_384
+
+
+class Segments(Sequence[Segment]):
+    """The segments of a compiled plan, expanded on demand (read-only sequence).
+
+    ``len``, indexing (negative too), slicing (a list) and iteration behave as on a tuple of
+    every segment; only the spans of ``span_size`` segments last used are kept (at most
+    :data:`CACHED_SEGMENTS` segments), so memory does not grow with the plan's length.
+    Reading in order, as the runner does, expands each span once. ``expand(k)`` gives the
+    segments of span ``k`` (built by :func:`tsa_bench.plan.compiler.compile_ops`).
+    """
+
+    def __init__(self, count: int, span_size: int, expand: Callable[[int], list[Segment]]) -> None:
+        self._n, self._size, self._expand = count, span_size, expand
+        self._cache: OrderedDict[int, list[Segment]] = OrderedDict()
+        self._keep = max(1, CACHED_SEGMENTS // span_size)
+
+    @classmethod
+    def empty(cls) -> Segments:
+        """No segments (a plan without steps)."""
+        return cls(0, 1, _no_segments)
+
+    def __len__(self) -> int:
+        return self._n
+
+    def _span(self, k: int) -> list[Segment]:
+        cache = self._cache
+        span = cache.get(k)
+        if span is None:
+            span = cache[k] = self._expand(k)
+            if len(cache) > self._keep:
+                cache.popitem(last=False)
+        elif k != next(reversed(cache)):
+            cache.move_to_end(k)
+        return span
+
+    @overload
+    def __getitem__(self, i: int) -> Segment: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[Segment]: ...
+
+    def __getitem__(self, i: int | slice) -> Segment | list[Segment]:
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(self._n))]
+        if i < 0:
+            i += self._n
+        if not 0 <= i < self._n:
+            raise IndexError(f"segment index {i} out of range (plan of {self._n} segments)")
+        return self._span(i // self._size)[i % self._size]
+
+    def __iter__(self) -> Iterator[Segment]:
+        for k in range((self._n + self._size - 1) // self._size):
+            yield from self._span(k)
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (Segments, tuple, list)):
+            return len(self) == len(other) and all(a == b for a, b in zip(self, other))
+        return NotImplemented
+
+    def __repr__(self) -> str:
+        return f"Segments({self._n} segments, expanded on demand)"
+
+
+def _no_segments(k: int) -> list[Segment]:
+    return []
 
 
 @dataclass(frozen=True)
@@ -41,6 +112,9 @@ class PlanSummary:
 class Plan:
     """A validated protocol compiled to segments; built only by the loader.
 
+    ``segments`` are expanded on demand (:class:`Segments`): any number of ``repeat``
+    cycles costs the memory of a few thousand segments.
+
     ``source_text`` is the YAML exactly as read; ``limits`` are the effective limits
     (bench tightened by the protocol); ``cycles`` counts the iterations of the outermost
     repeat block(s).
@@ -50,7 +124,7 @@ class Plan:
     description: str
     path: str | None
     source_text: str
-    segments: tuple[Segment, ...]
+    segments: Segments
     sampling_period_s: float
     load_g: float | None
     limits: Limits
@@ -58,7 +132,14 @@ class Plan:
     cycles: int = 0
 
     def summary(self) -> PlanSummary:
-        """Compute the :class:`PlanSummary` (linear in the number of segments)."""
+        """The :class:`PlanSummary` (one pass over the segments, computed once)."""
+        known = self.__dict__.get("_summary")
+        if known is None:
+            known = self._summarise()
+            object.__setattr__(self, "_summary", known)
+        return known
+
+    def _summarise(self) -> PlanSummary:
         counts = dict.fromkeys(KINDS, 0)
         position = 0.0
         twist_lo = twist_hi = 0.0

@@ -11,7 +11,7 @@ from enum import IntEnum, IntFlag
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 1
-CATALOGUE_HASH = 0x4F006524
+CATALOGUE_HASH = 0xF417839F
 MAX_PAYLOAD = 64
 
 
@@ -25,6 +25,8 @@ class Status(IntEnum):
     BAD_STATE = 4
     UNKNOWN_MESSAGE = 5
     BAD_LENGTH = 6
+    TOO_FAST_FOR_SENSOR = 7
+    TOO_FAST_FOR_LINE = 8
 
 
 class EventKind(IntEnum):
@@ -69,6 +71,15 @@ class AdcFlags(IntFlag):
     RESISTANCE_OSCILLATION = 2
     RESISTANCE_NOT_MEASURED = 4
     POSITION_INVALID = 8
+
+
+class SampleFlags(IntFlag):
+    """Catalogue enum `sample_flags`."""
+
+    POSITION_INVALID = 1
+    MOTOR_MOVING = 2
+    RESISTANCE_OVERRANGE = 4
+    RESISTANCE_OSCILLATION = 8
 
 
 class DeviceFlags(IntFlag):
@@ -332,6 +343,49 @@ class QueueStatus(NamedTuple):
     i2c_recoveries: int
 
 
+class SampleBlockEntry(NamedTuple):
+    """One entry of SAMPLE_BLOCK (up to 5, `more` of them).
+
+    dt_us (u16 [us]): time since the previous sample
+    step_delta (i16 [step]): step position minus the previous sample's
+    position_delta (i16 [count]): position_raw minus the previous sample's
+    flags (u8): sample_flags of this sample (position_invalid and motor_moving only)
+    """
+
+    dt_us: int
+    step_delta: int
+    position_delta: int
+    flags: int
+
+
+class SampleBlock(NamedTuple):
+    """SAMPLE_BLOCK (0x86, device -> host): Up to six consecutive samples of the continuous sampler (periods below the single-shot minimum) in one frame - the first in full, each next one as a delta; at most one CS5513 word per block (resistance is converted at the CS5513's own rate, slower than the samples).
+
+    counter (u32): counter of the first sample; the others follow on (counter + 1 ...)
+    t_us (u64 [us]): device time at which the first sample's position conversion started
+    step_position (i32 [step]): motor position at the first sample
+    position_raw (i16 [count]): ADS1115 conversion of the first sample
+    flags (u8): sample_flags of the first sample plus the flags of the block's resistance word
+    heater_mV (u16 [mV]): heater equivalent voltage applied (the same for every sample of the block)
+    segment (u16): segment index executing (the same for every sample of the block)
+    resistance_at (u8): index in the block (0 = the first sample) of the sample the CS5513 word belongs to; 255 = no word in this block
+    resistance_raw (i32 [count]): CS5513 20-bit two's-complement conversion (0 when resistance_at is 255)
+    more (u8): number of entries that follow (0..5)
+    """
+
+    counter: int
+    t_us: int
+    step_position: int
+    position_raw: int
+    flags: int
+    heater_mV: int
+    segment: int
+    resistance_at: int
+    resistance_raw: int
+    more: int
+    entries: tuple[SampleBlockEntry, ...] = ()
+
+
 @dataclass(frozen=True)
 class MessageSpec:
     """How one message is laid out on the wire."""
@@ -343,6 +397,12 @@ class MessageSpec:
     cls: type
     struct: struct.Struct
     units: dict[str, str]
+    #: variable-length messages: the struct of one entry, its class, the most entries and
+    #: the index of the field that counts them (the message's last field, `entries`, holds them)
+    entry_struct: struct.Struct | None = None
+    entry_cls: type | None = None
+    max_entries: int = 0
+    count_index: int = -1
 
 
 MESSAGES: dict[int, MessageSpec] = {
@@ -363,6 +423,7 @@ MESSAGES: dict[int, MessageSpec] = {
     0x83: MessageSpec('SAMPLE', 0x83, 'device', False, Sample, struct.Struct('<IQihiBHBH'), {'t_us': 'us', 'step_position': 'step', 'position_raw': 'count', 'resistance_raw': 'count', 'heater_mV': 'mV'}),
     0x84: MessageSpec('EVENT', 0x84, 'device', False, Event, struct.Struct('<QBHHi'), {'t_us': 'us'}),
     0x85: MessageSpec('QUEUE_STATUS', 0x85, 'device', False, QueueStatus, struct.Struct('<QBBHHBiHHHH'), {'t_us': 'us', 'step_position': 'step'}),
+    0x86: MessageSpec('SAMPLE_BLOCK', 0x86, 'device', False, SampleBlock, struct.Struct('<IQihBHHBiB'), {'t_us': 'us', 'step_position': 'step', 'position_raw': 'count', 'heater_mV': 'mV', 'resistance_raw': 'count'}, struct.Struct('<HhhB'), SampleBlockEntry, 5, 9),
 }
 
 SPEC_BY_CLASS: dict[type, MessageSpec] = {spec.cls: spec for spec in MESSAGES.values()}

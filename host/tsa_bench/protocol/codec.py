@@ -39,23 +39,54 @@ def spec_of(message: NamedTuple) -> MessageSpec:
         raise TypeError(f"{type(message).__name__} is not a catalogue message") from None
 
 
-def encode(message: NamedTuple, seq: int) -> bytes:
-    """Frame one message; raise ValueError when a field does not fit its wire type."""
+def pack_payload(message: NamedTuple) -> bytes:
+    """A message's payload (a variable-length one: its fixed fields, then its entries);
+    raise ValueError when a field does not fit its wire type or the entries do not
+    match their count field."""
     spec = spec_of(message)
     try:
-        payload = spec.struct.pack(*message)
+        if spec.entry_struct is None:
+            return spec.struct.pack(*message)
+        entries = message[-1]
+        if len(entries) != message[spec.count_index] or len(entries) > spec.max_entries:
+            raise ValueError(f"{spec.name}: {len(entries)} entries, count field says {message[spec.count_index]} "
+                             f"(at most {spec.max_entries})")
+        return spec.struct.pack(*message[:-1]) + b"".join(spec.entry_struct.pack(*e) for e in entries)
     except struct.error as exc:
         raise ValueError(f"{spec.name}: {exc} (fields {message})") from None
-    return encode_raw(spec.id, seq, payload)
+
+
+def encode(message: NamedTuple, seq: int) -> bytes:
+    """Frame one message; raise ValueError when a field does not fit its wire type."""
+    return encode_raw(spec_of(message).id, seq, pack_payload(message))
+
+
+def unpack_payload(spec: MessageSpec, payload: bytes) -> NamedTuple:
+    """The message a payload holds; MessageError ``bad_length`` when its length is not
+    the message's (for a variable-length one: its fixed fields plus as many entries as
+    its count field says)."""
+    size = spec.struct.size
+    if spec.entry_struct is None:
+        if len(payload) != size:
+            raise MessageError("bad_length", f"{spec.name} payload {len(payload)} B, expected {size}")
+        return spec.cls._make(spec.struct.unpack(payload))
+    if len(payload) < size:
+        raise MessageError("bad_length", f"{spec.name} payload {len(payload)} B, shorter than its {size} B of fixed fields")
+    fixed = spec.struct.unpack_from(payload)
+    n = fixed[spec.count_index]
+    esize = spec.entry_struct.size
+    if n > spec.max_entries or len(payload) != size + n * esize:
+        raise MessageError("bad_length", f"{spec.name} payload {len(payload)} B, expected {size} + {n} x {esize} "
+                                         f"(at most {spec.max_entries} entries)")
+    entries = tuple(spec.entry_cls._make(e) for e in spec.entry_struct.iter_unpack(payload[size:]))  # type: ignore[union-attr]
+    return spec.cls._make((*fixed, entries))
 
 
 def decode(raw: RawFrame) -> Frame:
     spec = MESSAGES.get(raw.msg_id)
     if spec is None:
         raise MessageError("unknown_message", f"message id 0x{raw.msg_id:02X}")
-    if len(raw.payload) != spec.struct.size:
-        raise MessageError("bad_length", f"{spec.name} payload {len(raw.payload)} B, expected {spec.struct.size}")
-    return Frame(raw.seq, spec.cls._make(spec.struct.unpack(raw.payload)))
+    return Frame(raw.seq, unpack_payload(spec, raw.payload))
 
 
 class MessageDecoder:

@@ -41,6 +41,7 @@ from tsa_bench.bench import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
 from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
+from tsa_bench.protocol.blocks import refusal_reason
 from tsa_bench.runner.checks import PlanRejected, check_plan_against_device  # noqa: F401 (re-exported)
 from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
 from tsa_bench.runner.documents import (
@@ -94,8 +95,8 @@ class Runner:
         self._t_start = np.full(n, np.nan)
         self._done = np.zeros(n, bool)
         self._done[:first] = True
-        self._parts = np.zeros(n, np.int64)        # device commands of each segment (a long hold: several)
-        self._parts_done = np.zeros(n, np.int64)   # SEGMENT_DONE events seen per segment
+        self._parts = np.zeros(n, np.int32)        # device commands of each segment (a long hold: several)
+        self._parts_done = np.zeros(n, np.int32)   # SEGMENT_DONE events seen per segment
         self._to_send: list[NamedTuple] = []       # commands of segment _next not yet accepted
         self._next = first              # next plan segment to send
         self._oldest = first            # oldest segment not yet done
@@ -262,7 +263,8 @@ class Runner:
             self._pump()
             ack = self._command(message)
         if ack.status != msg.Status.OK:
-            raise RunFailed(f"device refused {what}: {msg.Status(ack.status).name.lower()}")
+            raise RunFailed(f"device refused {what}: {msg.Status(ack.status).name.lower()}"
+                            f"{refusal_reason(message, ack.status, self.bench.baud)}")
         self._free = ack.queue_free
 
     def _safe_stop(self) -> None:
@@ -306,13 +308,13 @@ class Runner:
             if not self._to_send:          # a long hold is several DWELLs
                 self._to_send = device_commands(seg, self.spt)
                 self._parts[self._next] = len(self._to_send)
-            if not self._accepted(self._command(self._to_send[0]), seg):
+            if not self._accepted(self._command(self._to_send[0]), seg, self._to_send[0]):
                 return
             self._to_send.pop(0)
             if not self._to_send:
                 self._next += 1
 
-    def _accepted(self, ack: msg.Ack, seg: Segment) -> bool:
+    def _accepted(self, ack: msg.Ack, seg: Segment, command: NamedTuple | None = None) -> bool:
         """Bookkeeping of a queued command's ACK: False when the queue was full (nothing
         was queued, send it again later); RunFailed when the device refused it."""
         if ack.status == msg.Status.QUEUE_FULL:
@@ -322,7 +324,7 @@ class Runner:
             self._explain_bad_state()
         if ack.status != msg.Status.OK:
             raise RunFailed(f"device refused segment {seg.index} ({seg.kind}, {seg.source}): "
-                            f"{msg.Status(ack.status).name.lower()}")
+                            f"{msg.Status(ack.status).name.lower()}{refusal_reason(command, ack.status, self.bench.baud)}")
         self._free = ack.queue_free
         self._last_sent_wire = seg.index % WIRE_SEGMENTS
         return True

@@ -18,6 +18,7 @@ the first by its root attributes :meth:`ResumePoint.attributes`.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -95,7 +96,7 @@ def resume_point(run, plan: Plan, path: str | Path) -> ResumePoint:
     move: Move | None = None
     tracked: int | None = None     # a track_length after the last move: its twist was decided while running
     heater, period, load = 0.0, plan.sampling_period_s, plan.load_g
-    for seg in plan.segments[:k]:
+    for seg in itertools.islice(plan.segments, k):
         a = seg.action
         if isinstance(a, Move):
             move, tracked = a, None

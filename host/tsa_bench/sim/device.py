@@ -27,8 +27,10 @@ implements it:
   re-sent (plus a fresh QUEUE_STATUS for HEARTBEAT). A refused command had no effect,
   so its repetition is simply evaluated again (a QUEUE_FULL retry can succeed).
 * Queued commands are checked in this order: latched fault or (moves) position
-  unknown -> ``bad_state``; zero rate/accel or a sampling period below
-  ``min_sample_period_us`` -> ``bad_argument``; rate, accel,
+  unknown -> ``bad_state``; zero rate/accel -> ``bad_argument``; a sampling period
+  shorter than an ADS1115 conversion -> ``too_fast_for_sensor``, or whose sample
+  frames the line (the bench's baud) cannot carry -> ``too_fast_for_line``
+  (:func:`tsa_bench.protocol.blocks.sampling_refusal`); rate, accel,
   heater, MOVE_TO target or MOVE_BY projected target beyond the limits ->
   ``limit_exceeded``; no free slot -> ``queue_full``.
 * STOP: heater off, queue cleared (the running segment gets no SEGMENT_DONE), and the
@@ -51,6 +53,11 @@ implements it:
   not while the heater is on, not in the ~80 ms after the sense current comes on unless
   the period leaves time, not at periods shorter than a conversion); otherwise the
   sample keeps its slot and says resistance_not_measured.
+* Periods below ``SINGLE_SHOT_MIN_PERIOD_US`` (3 ms) sample continuously, as the
+  firmware's ADS1115 in continuous mode: a sample every ``period // 1163`` conversions
+  of 1/860 s, sent in SAMPLE_BLOCK frames (:mod:`tsa_bench.protocol.blocks`; a block
+  under way goes out before any other frame), each with the CS5513 word finished
+  since the previous sample when there is one (words come at the CS5513's own rate).
 * Every EVENT's ``value`` is the step position at that instant (the rest position for
   STOPPED and FAULT); ``code`` is the fault for FAULT, FAULT_CLEARED and MOTOR_RELEASED,
   else 0. QUEUE_STATUS carries the state bits and the position; its error counters
@@ -67,6 +74,9 @@ from typing import NamedTuple
 
 from tsa_bench.bench.config import BenchConfig
 from tsa_bench.protocol import catalogue as msg
+from tsa_bench.protocol.blocks import (
+    ADS1115_SPS, SAMPLES_PER_BLOCK, SINGLE_SHOT_MIN_PERIOD_US, BlockBuilder, conversions_per_sample, frame_bytes, sampling_refusal,
+)
 from tsa_bench.protocol.codec import Frame, encode
 from tsa_bench.protocol.framing import FrameDecoder, RawFrame, encode_raw
 from tsa_bench.sim.executor import NO_SEGMENT, QueuedCommand, SegmentExecutor
@@ -84,13 +94,10 @@ _SAMPLE_PACK = _SAMPLE_SPEC.struct.pack
 _NOT_MEASURED = int(msg.AdcFlags.RESISTANCE_NOT_MEASURED)
 _QUEUED_TYPES = (msg.MoveTo, msg.MoveBy, msg.Dwell, msg.SetHeater, msg.SetSampling)
 _SAMPLE_FRAME_BYTES = _SAMPLE_SPEC.struct.size + 8
+_BLOCK_SPEC = msg.MESSAGES[0x86]
+_BLOCK_ENTRY_BYTES = _BLOCK_SPEC.entry_struct.size  # type: ignore[union-attr]
 
 
-def frame_bytes(payload_bytes: int) -> int:
-    """Bytes one frame takes on the wire: header 4 + payload + CRC 2, COBS 1 (bodies
-    under 254 bytes: every catalogue message), delimiter 1."""
-    body = payload_bytes + 6
-    return body + 1 + body // 254 + 1
 _STATE = msg.DeviceState
 _FRAME_SIZES: dict[type, int] = {}   # message class -> its frame's size on the wire
 
@@ -131,6 +138,8 @@ class SimDevice:
         self._k = 0
         self._next_sample_s = math.inf
         self._counter = 0
+        self._block = BlockBuilder()     # continuous sampling: samples waiting for their SAMPLE_BLOCK
+        self._step_us = 0.0              # continuous sampling: us between samples (ADS1115 conversions)
 
     # -- public -----------------------------------------------------------
     @property
@@ -273,6 +282,8 @@ class SimDevice:
         if self._held is not None:
             self._held.append(message)
             return
+        if len(self._block):
+            self._send_block(self._block.flush())   # samples taken before it go first
         if self._frames is None:
             data = encode(message, self._seq)
             self._out += data
@@ -301,30 +312,62 @@ class SimDevice:
         if heater_mV > 0 or ex.heater_switch_ons != self._heater_seen:
             timing.sense_off()       # the heater came on since the last sample: current off
             self._heater_seen = ex.heater_switch_ons
-        t_us = self._anchor_us + self._k * self._period_us
-        if heater_mV == 0 and not timing.measured(t_us * 1e-6, self._period_us * 1e-6):
-            resistance_raw, flags = 0, flags | _NOT_MEASURED
+        if self._step_us:
+            t_us = self._anchor_us + round(self._k * self._step_us)
+            if heater_mV == 0 and not timing.word_since_last(t_us * 1e-6):
+                resistance_raw, flags = 0, flags | _NOT_MEASURED
+        else:
+            t_us = self._anchor_us + self._k * self._period_us
+            if heater_mV == 0 and not timing.measured(t_us * 1e-6, self._period_us * 1e-6):
+                resistance_raw, flags = 0, flags | _NOT_MEASURED
         fields = (self._counter, t_us, steps, position_raw, resistance_raw, flags, heater_mV, 1 if moving else 0,
                   ex.segment)
-        if self._frames is None:
+        if self._step_us:
+            self._send_block(self._block.add(msg.Sample(*fields)))
+            if len(self._block) >= SAMPLES_PER_BLOCK:     # full: out at once, as the firmware does
+                self._send_block(self._block.flush())
+        elif self._frames is None:
             data = encode_raw(0x83, self._seq, _SAMPLE_PACK(*fields))
             self._out += data
             self._produced += len(data)
+            self._seq = (self._seq + 1) & 0xFFFF
         else:
             self._frames.append((Frame(self._seq, msg.Sample(*fields)), _SAMPLE_FRAME_BYTES))
             self._produced += _SAMPLE_FRAME_BYTES
-        self._seq = (self._seq + 1) & 0xFFFF
+            self._seq = (self._seq + 1) & 0xFFFF
         self._counter = (self._counter + 1) & 0xFFFFFFFF
         self._k += 1
-        self._next_sample_s = (t_us + self._period_us) * 1e-6
+        if self._step_us:
+            self._next_sample_s = (self._anchor_us + round(self._k * self._step_us)) * 1e-6
+        else:
+            self._next_sample_s = (t_us + self._period_us) * 1e-6
+
+    def _send_block(self, block: msg.SampleBlock | None) -> None:
+        """Send a closed SAMPLE_BLOCK (a sample frame: not urgent, like SAMPLE)."""
+        if block is None:
+            return
+        if self._frames is None:
+            data = encode(block, self._seq)
+            self._out += data
+            n = len(data)
+        else:
+            n = frame_bytes(_BLOCK_SPEC.struct.size + len(block.entries) * _BLOCK_ENTRY_BYTES)
+            self._frames.append((Frame(self._seq, block), n))
+        self._produced += n
+        self._seq = (self._seq + 1) & 0xFFFF
 
     def _set_sampling(self, period_us: int, t_s: float) -> None:
+        if len(self._block):
+            self._send_block(self._block.flush())
         if period_us == 0:
             self.resistance_timing.sense_off()
         self._period_us = period_us
         self._anchor_us = self._t_us(t_s)
         self._k = 1
-        self._next_sample_s = (self._anchor_us + period_us) * 1e-6 if period_us else math.inf
+        continuous = 0 < period_us < SINGLE_SHOT_MIN_PERIOD_US
+        self._step_us = conversions_per_sample(period_us) * 1e6 / ADS1115_SPS if continuous else 0.0
+        first_us = round(self._step_us) if continuous else period_us
+        self._next_sample_s = (self._anchor_us + first_us) * 1e-6 if period_us else math.inf
 
     # -- input ------------------------------------------------------------
     def _handle(self, raw: RawFrame, message: NamedTuple | None = None) -> None:
@@ -407,8 +450,9 @@ class SimDevice:
             if message.voltage_mV > lim.max_heater_mV:
                 return _S.LIMIT_EXCEEDED
         elif kind is msg.SetSampling:
-            if 0 < message.period_us < lim.min_sample_period_us:
-                return _S.BAD_ARGUMENT
+            refusal = sampling_refusal(message.period_us, self.bench.baud)
+            if refusal is not None:
+                return refusal[0]
         if self.executor.queue_free <= 0:
             return _S.QUEUE_FULL
         return _S.OK

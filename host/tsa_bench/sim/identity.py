@@ -21,8 +21,9 @@ from tsa_bench.protocol import catalogue as msg
 
 #: Firmware version the simulation reports (major, minor, patch).
 SIM_FIRMWARE_VERSION = (0, 2, 0)
-#: Shortest nonzero sampling period the device accepts (us), firmware MIN_SAMPLE_PERIOD_US.
-MIN_SAMPLING_PERIOD_US = 3000
+#: Shortest nonzero sampling period the device accepts (us), firmware MIN_SAMPLE_PERIOD_US:
+#: one ADS1115 conversion at 860 samples/s (shorter periods are refused too_fast_for_sensor).
+MIN_SAMPLING_PERIOD_US = 1163
 #: A latched fault releases the motor after this long (ms), firmware FAULT_RELEASE_MS.
 FAULT_RELEASE_MS = 10000
 

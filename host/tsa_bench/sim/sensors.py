@@ -123,3 +123,18 @@ class ResistanceTiming:
             return True
         self._read_s = max(self._read_s, min(self._latest_word(deadline_s), self._latest_word(valid_s - 1e-9)))
         return False
+
+    def word_since_last(self, t_s: float) -> bool:
+        """Continuous sampling: whether the sample at ``t_s`` (heater off) carries a CS5513
+        word, the one finished since the previous sample's, if the filter had settled by
+        then (the sense current comes on at the first such sample; words run on at the
+        CS5513's own rate, one in several samples)."""
+        if self._on_s is None:
+            self._on_s = t_s
+            if self._anchor_s is None:
+                self._anchor_s = t_s
+        word = self._latest_word(t_s)
+        if word <= self._read_s:
+            return False
+        self._read_s = word
+        return word >= self._on_s + CS5513_SETTLE_S - 1e-9

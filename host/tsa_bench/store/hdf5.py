@@ -52,7 +52,10 @@ NO_ROOM_ERRNOS = {28, 27, 122}
 FORMAT = "tsa-bench/run"
 #: 1.1: sample columns gzip+shuffle compressed, ``t`` an HDF5 dimension scale of the others
 #: (1.0 files, uncompressed and without scales, are read the same way).
-FORMAT_VERSION = "1.1"
+#: 1.2: /segments coded (kind a number named by its ``kind_names`` attribute, source and
+#: params numbers of rows of /segment_texts, each distinct text stored once) and compressed;
+#: 1.0 and 1.1 files, with the texts in every row, are read the same way.
+FORMAT_VERSION = "1.2"
 #: Rows per chunk of a sample column.
 CHUNK = 8192
 #: gzip level of the sample columns (0: uncompressed); shuffle goes with it.
@@ -61,8 +64,17 @@ COMPRESSION_LEVEL = 4
 #: for appends (the chunk being filled stays cached), and bounded whatever the run's length.
 CACHE_BYTES = 2 * CHUNK * 8
 STR = h5py.string_dtype("utf-8")
+#: The segment table as readers get it (and as 1.0/1.1 files store it: texts in every row).
 SEGMENT_DTYPE = np.dtype([("index", "i4"), ("kind", STR), ("t_start", "f8"), ("t_end", "f8"),
                           ("completed", "u1"), ("cycle", "i4"), ("source", STR), ("params", STR)])
+#: The segment table as 1.2 files store it: ``kind`` indexes the ``kind_names`` attribute,
+#: ``source`` and ``params`` index /segment_texts.
+SEGMENT_ROW_DTYPE = np.dtype([("index", "i4"), ("kind", "u1"), ("t_start", "f8"), ("t_end", "f8"),
+                              ("completed", "u1"), ("cycle", "i4"), ("source", "u4"), ("params", "u4")])
+#: Rows per chunk of /segments, and the distinct texts a writer remembers (later texts are
+#: stored again each time: memory stays bounded whatever the run).
+SEGMENT_CHUNK = 4096
+MAX_REMEMBERED_TEXTS = 65_536
 SEGMENT_UNITS = {"t_start": "s", "t_end": "s", "cycle": "1 (-1 outside repeat blocks)"}
 EVENT_DTYPE = np.dtype([("t", "f8"), ("kind", STR), ("detail", STR)])
 
@@ -113,6 +125,13 @@ class RunWriter:
         self._last_flush = time.monotonic()
         self._columns: dict[str, _Appender] = {}
         self._segment_rows: _Appender | None = None
+        self._text_rows: _Appender | None = None
+        from tsa_bench.plan.actions import KINDS
+        self._kinds: dict[str, int] = {k: i for i, k in enumerate(KINDS)}   # kind -> its code
+        self._kinds_changed = False
+        self._text_ids: dict[str, int] = {}   # distinct source/params text -> row of /segment_texts
+        self._texts: list[str] = []           # new texts waiting for the next flush
+        self._n_texts = 0
         self._event_rows: _Appender | None = None
         self.full: str | None = None    # why nothing more is written ("disk full: ...")
         self.broken: str | None = None  # the HDF5 library failed a write: the file cannot be closed
@@ -169,9 +188,14 @@ class RunWriter:
         for name in columns:
             if name != "t":
                 g[name].dims[0].attach_scale(g["t"])
-        seg = f.create_dataset("segments", shape=(0,), maxshape=(None,), chunks=(1024,), dtype=SEGMENT_DTYPE)
+        seg = f.create_dataset("segments", shape=(0,), maxshape=(None,), chunks=(SEGMENT_CHUNK,),
+                               dtype=SEGMENT_ROW_DTYPE, **packed)
         for field, units in SEGMENT_UNITS.items():
             seg.attrs[f"{field}_units"] = units
+        seg.attrs["kind_names"] = json.dumps(list(self._kinds))
+        seg.attrs["texts"] = "/segment_texts"   # source and params are row numbers there
+        texts = f.create_dataset("segment_texts", shape=(0,), maxshape=(None,), chunks=(256,), dtype=STR)
+        self._text_rows = _Appender(texts)
         ev = f.create_dataset("events", shape=(0,), maxshape=(None,), chunks=(256,), dtype=EVENT_DTYPE)
         ev.attrs["t_units"] = "s"
         self._columns = {name: _Appender(g[name]) for name in columns}
@@ -184,10 +208,27 @@ class RunWriter:
         self._maybe_flush()
 
     def on_segment(self, s: SegmentRecord) -> None:
-        self._segments.append((s.index, s.kind, s.t_start, s.t_end, int(s.completed),
-                               -1 if s.cycle is None else s.cycle, s.source, json.dumps(s.params)))
+        code = self._kinds.get(s.kind)
+        if code is None:
+            if len(self._kinds) > 255:
+                raise ValueError(f"more than 256 segment kinds (new: {s.kind!r})")
+            code = self._kinds[s.kind] = len(self._kinds)
+            self._kinds_changed = True
+        self._segments.append((s.index, code, s.t_start, s.t_end, int(s.completed),
+                               -1 if s.cycle is None else s.cycle, self._text(s.source), self._text(json.dumps(s.params))))
         self._segment_flush_due = True
         self._maybe_flush()
+
+    def _text(self, text: str) -> int:
+        """The /segment_texts row holding ``text`` (a new row for a text not seen before)."""
+        row = self._text_ids.get(text)
+        if row is None:
+            row = self._n_texts
+            self._n_texts += 1
+            self._texts.append(text)
+            if len(self._text_ids) < MAX_REMEMBERED_TEXTS:
+                self._text_ids[text] = row
+        return row
 
     def on_event(self, e: EventRecord) -> None:
         self._events.append((e.t, e.kind, e.detail))
@@ -267,12 +308,18 @@ class RunWriter:
         columns = {name: (self._pending[0].columns[name] if len(self._pending) == 1
                           else np.concatenate([b.columns[name] for b in self._pending]))
                    for name in self._columns} if self._pending else {}
-        segments = np.array(self._segments, dtype=SEGMENT_DTYPE) if self._segments else None
+        segments = np.array(self._segments, dtype=SEGMENT_ROW_DTYPE) if self._segments else None
+        texts = np.array(self._texts, dtype=object) if self._texts else None
         events = np.array(self._events, dtype=EVENT_DTYPE) if self._events else None
         try:
             for name, column in self._columns.items():
                 if columns:
                     column.append(columns[name])
+            if texts is not None:
+                self._text_rows.append(texts)
+            if self._kinds_changed:
+                f["segments"].attrs["kind_names"] = json.dumps(list(self._kinds))
+                self._kinds_changed = False
             if segments is not None:
                 self._segment_rows.append(segments)
             if events is not None:
@@ -281,12 +328,13 @@ class RunWriter:
         except (OSError, RuntimeError) as exc:
             self.broken = f"the HDF5 library failed to write {self.path} ({exc}); the file cannot be closed"
             raise StorageFull(f"disk full or write error: {self.broken}") from None
-        self._pending, self._segments, self._events = [], [], []
+        self._pending, self._segments, self._events, self._texts = [], [], [], []
         self._pending_rows = 0
         if columns:
             self.stats.add_samples(columns)
         if segments is not None:
-            self.stats.add_segments(segments)
+            names = list(self._kinds)
+            self.stats.add_segments(segments, names)
         if events is not None:
             self.stats.add_events(events)
 

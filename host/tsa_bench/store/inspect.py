@@ -104,10 +104,15 @@ class RunningStats:
             self._last_counter = float(c[-1])
         self.n += k
 
-    def add_segments(self, rows: np.ndarray) -> None:
+    def add_segments(self, rows: np.ndarray, kind_names: list[str] | None = None) -> None:
+        """Rows of /segments; with ``kind_names``, ``kind`` holds codes into it (the stored layout)."""
         self.segments += len(rows)
         self.segments_completed += int(rows["completed"].sum())
-        self.segment_kinds.update(_kind_counts(rows))
+        if kind_names is None:
+            self.segment_kinds.update(_kind_counts(rows))
+        else:
+            codes, counts = np.unique(rows["kind"], return_counts=True)
+            self.segment_kinds.update({kind_names[c]: int(n) for c, n in zip(codes, counts)})
 
     def add_events(self, rows: np.ndarray) -> None:
         self.events += len(rows)

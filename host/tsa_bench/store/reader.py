@@ -18,11 +18,14 @@ whose one-line message names the file and exactly what is wrong:
   :data:`MAX_ABS_VALUE` or infinite in a float column (NaN means "not measured" and is
   kept);
 * ``/segments`` or ``/events`` that are not 1-D tables with the contract's fields of
-  the right kinds, segment indices outside 0..:data:`MAX_SEGMENT_INDEX` (or -1);
+  the right kinds, segment indices outside 0..:data:`MAX_SEGMENT_INDEX` (or -1); in the
+  coded layout of format 1.2, a ``kind_names`` attribute that is not a JSON list of texts,
+  a /segment_texts that is not a 1-D text dataset, or a code naming no kind or text;
 * damaged datasets or attributes that HDF5 cannot read.
 
 It returns a :class:`RunData` holding every sample column (required and extra), the
-segment and event tables normalised to the writer's dtypes (None when absent; optional
+segment and event tables normalised to one in-memory layout, :data:`SEGMENT_DTYPE`
+with texts in every row, whichever layout the file has (None when absent; optional
 fields missing in a file from another tool are filled: ``completed`` 1, ``cycle`` -1,
 texts empty) and the configuration texts. Files written by other tools or imported
 from CSV are welcome as long as they meet the contract.
@@ -30,6 +33,7 @@ from CSV are welcome as long as they meet the contract.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,7 +42,7 @@ import h5py
 import numpy as np
 
 from tsa_bench.documents import DocumentError, check_regular_file
-from tsa_bench.store.hdf5 import EVENT_DTYPE, FORMAT, SEGMENT_DTYPE
+from tsa_bench.store.hdf5 import EVENT_DTYPE, FORMAT, SEGMENT_DTYPE, SEGMENT_ROW_DTYPE
 from tsa_bench.store.probe import check_hdf5_terminates
 
 #: Required sample columns and their units (docs/run-format.md).
@@ -248,7 +252,9 @@ def _read(f: _File) -> RunData:
     if attrs.get("format") != FORMAT:
         raise f.fail(f"root attribute 'format' is {attrs.get('format')!r}, expected {FORMAT!r}")
     samples, units, extra = _samples(f, str(attrs.get("exit_status", "")))
-    segments = f.table("segments", SEGMENT_DTYPE, _SEGMENT_REQUIRED, _SEGMENT_OPTIONAL)
+    segments = _coded_segments(f)
+    if segments is None:
+        segments = f.table("segments", SEGMENT_DTYPE, _SEGMENT_REQUIRED, _SEGMENT_OPTIONAL)
     if segments is not None and len(segments):
         idx = segments["index"]
         if idx.min() < -1 or idx.max() > MAX_SEGMENT_INDEX:
@@ -256,6 +262,54 @@ def _read(f: _File) -> RunData:
     events = f.table("events", EVENT_DTYPE, _EVENT_REQUIRED, _EVENT_OPTIONAL)
     return RunData(str(f.path), attrs, samples, units, segments, events,
                    f.text("config/protocol"), f.text("config/bench"), extra)
+
+
+def _coded_segments(f: _File) -> np.ndarray | None:
+    """/segments in the coded layout (format 1.2: numbers for kind, source and params)
+    decoded to :data:`SEGMENT_DTYPE`; None when the file has the layout with texts in rows."""
+    ds = f.member("segments")
+    names = ds.dtype.names if isinstance(ds, h5py.Dataset) else None
+    if not names or "kind" not in names or ds.dtype["kind"].kind not in "iu":
+        return None
+    if ds.ndim != 1:
+        raise f.fail(f"/segments must be a 1-D table, got {_describe(ds)}")
+    if ds.shape[0] > MAX_SAMPLES:
+        raise f.fail(f"/segments has {ds.shape[0]:,} rows, more than {MAX_SAMPLES:,}")
+    for key in SEGMENT_ROW_DTYPE.names:
+        if key not in names:
+            raise f.fail(f"/segments (coded layout) lacks the field '{key}' (fields: {', '.join(names)})")
+        if ds.dtype[key].kind not in ("iuf" if key in ("t_start", "t_end") else "iu"):
+            raise f.fail(f"/segments field '{key}' has the wrong type ({ds.dtype[key]})")
+    try:
+        kinds = json.loads(_plain(ds.attrs["kind_names"]))
+    except (KeyError, TypeError, ValueError):
+        kinds = None
+    if not isinstance(kinds, list) or not all(isinstance(k, str) for k in kinds):
+        raise f.fail("/segments has a numeric 'kind' but no attribute 'kind_names' (a JSON list of texts) naming it")
+    texts_ds = f.member("segment_texts")
+    if not isinstance(texts_ds, h5py.Dataset) or texts_ds.ndim != 1 or texts_ds.dtype.kind not in "SOU":
+        raise f.fail(f"/segment_texts must be a 1-D text dataset (the texts /segments refers to), "
+                     f"got {_describe(texts_ds) if texts_ds is not None else 'nothing'}")
+    if texts_ds.shape[0] > MAX_SAMPLES:
+        raise f.fail(f"/segment_texts has {texts_ds.shape[0]:,} rows, more than {MAX_SAMPLES:,}")
+    raw = ds[()]
+    texts = np.array([v if isinstance(v, bytes) else str(v).encode("utf-8", "replace") for v in texts_ds[()]]
+                     + [b""], dtype=object)
+    out = np.zeros(len(raw), dtype=SEGMENT_DTYPE)
+    for key, table, what in (("kind", np.array([k.encode() for k in kinds] + [b""], dtype=object), "kind_names"),
+                             ("source", texts, "/segment_texts"), ("params", texts, "/segment_texts")):
+        codes = raw[key].astype(np.int64)
+        bad = np.flatnonzero((codes < 0) | (codes >= len(table) - 1))
+        if len(bad):
+            i = int(bad[0])
+            raise f.fail(f"/segments row {i} field '{key}' is {codes[i]}, but {what} has {len(table) - 1} entries "
+                         f"({len(bad)} such row(s))")
+        out[key] = table[codes]
+    for key in ("t_start", "t_end"):
+        _check_floats(f, raw[key].astype(float), f"/segments field '{key}'")
+    for key in ("index", "t_start", "t_end", "completed", "cycle"):
+        out[key] = raw[key]
+    return out
 
 
 def read_run(path: str | Path) -> RunData:

@@ -52,8 +52,9 @@ def available_bytes(path: str | Path) -> int:
     return free
 
 
-#: A new chunk of /segments (1024 rows) and of /events (256 rows).
-SEGMENT_CHUNK_BYTES, EVENT_CHUNK_BYTES = 1024 * 80, 256 * 48
+#: A new chunk of /segments (4096 rows of 34 bytes, stored uncompressed at worst) with one of
+#: /segment_texts, and one of /events (256 rows).
+SEGMENT_CHUNK_BYTES, EVENT_CHUNK_BYTES = 4096 * 34 + 256 * 16, 256 * 48
 
 
 def flush_bytes(rows: int, segments: int, events: int) -> int:
