@@ -127,6 +127,7 @@ private:
     // device_sample.cpp: the sampling grid and the conversions
     void set_sampling(uint32_t period_us, uint64_t t_us);
     void run_sampler(uint64_t now);
+    bool sample_due(uint64_t now);
     void start_sample(uint64_t now);
     void progress_sample(uint64_t now);
     void run_continuous(uint64_t now);

@@ -52,14 +52,7 @@ void Device::run_continuous(uint64_t now) {
         position_ok = board_.position_read(counts) > 0;
         t_us = now - cfg::MIN_SAMPLE_PERIOD_US;
     } else {
-        if (now < next_sample_us_) return;
-        const uint64_t late = now - next_sample_us_;
-        if (late >= period_us_) {
-            const uint64_t skipped = late / period_us_;
-            next_sample_us_ += skipped * period_us_;
-            counter_ += static_cast<uint32_t>(skipped);
-            samples_missed_ += static_cast<uint32_t>(skipped);
-        }
+        if (!sample_due(now)) return;
         next_sample_us_ += period_us_;
         t_us = now;
     }

@@ -64,7 +64,13 @@ void Device::run_sampler(uint64_t now) {
     progress_sample(now);
     if (sampler_ != SAMPLER_IDLE || period_us_ == 0) return;
     now = board_.now_us();  // the pass's earlier work took time: decide on the present
-    if (now < next_sample_us_) return;
+    if (sample_due(now)) start_sample(now);
+}
+
+// True once the next sample's slot has come; slots already passed whole are counted as
+// missed (the counter jumps over them, so the host sees the gap).
+bool Device::sample_due(uint64_t now) {
+    if (now < next_sample_us_) return false;
     const uint64_t late = now - next_sample_us_;
     if (late >= period_us_) {
         const uint64_t skipped = late / period_us_;
@@ -72,7 +78,7 @@ void Device::run_sampler(uint64_t now) {
         counter_ += static_cast<uint32_t>(skipped);
         samples_missed_ += static_cast<uint32_t>(skipped);
     }
-    start_sample(now);
+    return true;
 }
 
 void Device::start_sample(uint64_t now) {
