@@ -58,23 +58,15 @@ def fig_twist_heat(run: RunData, path: Path, dpi: int = DPI) -> str | None:
 
     ax = axes[1]
     pts = np.array([(p.turns, p.heater_voltage, p.length) for p in rests])
-    sc = ax.scatter(pts[:, 0], pts[:, 2], c=pts[:, 1], cmap="inferno_r", s=22, edgecolors="k", linewidths=0.3)
-    fig.colorbar(sc, ax=ax, label="heater voltage (V)")
-    ax.set_xlabel("twist (turns)")
-    ax.set_ylabel("steady length (mm)")
-    ax.set_title("(b) steady length vs twist and voltage", fontsize=10)
-    ax.grid(alpha=0.3)
+    _steady_scatter(fig, ax, pts[:, 0], pts[:, 2], pts[:, 1], "inferno_r", "heater voltage (V)", "twist (turns)",
+                    "(b) steady length vs twist and voltage")
 
     ax = axes[2]
     drawn = _heating_per_twist(ax, rests, twists, plt.get_cmap("viridis"))
     if len(drawn) < 2:  # heated at twists it never rested at unheated (twist_heat steps): both inputs at once
         ax.clear()
-        sc = ax.scatter(pts[:, 1], pts[:, 2], c=pts[:, 0], cmap="viridis", s=22, edgecolors="k", linewidths=0.3)
-        fig.colorbar(sc, ax=ax, label="twist (turns)")
-        ax.set_xlabel("heater voltage (V)")
-        ax.set_ylabel("steady length (mm)")
-        ax.set_title("(c) steady length vs voltage and twist", fontsize=10)
-        ax.grid(alpha=0.3)
+        _steady_scatter(fig, ax, pts[:, 1], pts[:, 2], pts[:, 0], "viridis", "twist (turns)", "heater voltage (V)",
+                        "(c) steady length vs voltage and twist")
     title(fig, "Twisting and heating: length vs twist and voltage", run)
     fig.tight_layout()
     save(fig, path, dpi)
@@ -114,3 +106,13 @@ def _heating_per_twist(ax, rests: list, twists: list[float], cmap) -> list[tuple
     if drawn:
         ax.legend(fontsize=8)
     return drawn
+
+
+def _steady_scatter(fig, ax, x, length_mm, colour, cmap: str, colour_label: str, x_label: str, heading: str) -> None:
+    """Steady lengths (mm) against ``x``, coloured by the other input."""
+    sc = ax.scatter(x, length_mm, c=colour, cmap=cmap, s=22, edgecolors="k", linewidths=0.3)
+    fig.colorbar(sc, ax=ax, label=colour_label)
+    ax.set_xlabel(x_label)
+    ax.set_ylabel("steady length (mm)")
+    ax.set_title(heading, fontsize=10)
+    ax.grid(alpha=0.3)
