@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import struct
-
+import h5py
 import pytest
 from click.testing import CliRunner
 
@@ -19,24 +18,20 @@ steps:
   - move_to: {turns: 3}
   - hold: {duration_s: 2}
 """
-def _damage(src, dst):
-    """Flip the top bit of the size of the last object (the free space, index 0) of the
-    file's first global heap collection: HDF5 1.14 then loops on every read of a
-    variable-length string attribute (found by the mutation tests)."""
-    data = bytearray(src.read_bytes())
-    at = data.find(b"GCOL")   # "GCOL", version, 3 reserved, 8-byte collection size, objects
-    assert at >= 0, "a run file keeps its string attributes in a global heap"
-    (size,) = struct.unpack_from("<Q", data, at + 8)
-    obj = last = at + 16
-    while obj <= at + size - 16:     # object: index u16, refs u16, reserved u32, size u64, data
-        index, _, _, length = struct.unpack_from("<HHIQ", data, obj)
-        last = obj
-        if index == 0:
-            break
-        obj += 16 + (length + 7) // 8 * 8
-    data[last + 8] ^= 0x80
-    dst.write_bytes(bytes(data))
-    return dst
+def _damaged(path):
+    """A small HDF5 file whose global heap's first object has a wrong size (top bit of its
+    size field flipped): HDF5 1.14 then loops on every read of its string attributes (found
+    by the mutation tests). Built from fixed contents, so its bytes do not depend on where
+    the test runs."""
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = "tsa-bench/run"
+        f.attrs["exit_status"] = "success"
+    data = bytearray(path.read_bytes())
+    at = data.find(b"GCOL")   # "GCOL", version, 3 reserved, 8-byte collection size, then objects:
+    assert at >= 0            # index u16, references u16, reserved u32, size u64 (at +24), data
+    data[at + 24] ^= 0x80
+    path.write_bytes(bytes(data))
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +39,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("damaged")
     stop, _, path = run_plan(plan_from_text(PLAN), d)
     assert stop.exit_status == "success"
-    return path, _damage(path, d / "damaged.h5")
+    return path, _damaged(d / "damaged.h5")
 
 
 @pytest.fixture
