@@ -17,7 +17,7 @@ runs, peak RSS of the child from ``wait4``), printed as one table:
   mask included; ``--fits`` picks some) at 1x / 4x / 10x lifetime (the lifetime run tiled
   in time): whole-process s and peak RSS and the fit's own CPU s, against linear (the 1x
   figure times the factor);
-* the SAMPLE frame: bytes on the wire per sample and samples/s the 250 kbaud line
+* the SAMPLE frame and a full SAMPLE_BLOCK: bytes on the wire per sample and samples/s the 250 kbaud line
   carries, against the ADS1115's 860 samples/s.
 
     python3 scripts/bench/speed_limits.py [--repeat 3] [--long] [--keep DIR] [--baseline CHECKOUT]
@@ -182,6 +182,12 @@ def frame_figures() -> tuple[int, int, float]:
     return payload, len(frame), LINE_BAUD / 10 / len(frame)
 
 
+def block_figures() -> tuple[int, float]:
+    """(samples per full SAMPLE_BLOCK, wire bytes per sample in it)."""
+    from tsa_bench.protocol.blocks import FULL_BLOCK_BYTES, SAMPLES_PER_BLOCK
+    return SAMPLES_PER_BLOCK, FULL_BLOCK_BYTES / SAMPLES_PER_BLOCK
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3, help="whole-process runs per figure (min / median shown)")
@@ -285,6 +291,10 @@ def main() -> None:
     payload, frame, sps = frame_figures()
     row("SAMPLE frame", f"{frame} B for a {payload} B payload ({(frame - payload) / payload * 100:.1f} % overhead on the payload): "
         f"{sps:.0f} samples/s at {LINE_BAUD // 1000} kbaud", f"ADS1115 {ADS1115_SPS} samples/s")
+    per_block, block_b = block_figures()
+    row("SAMPLE_BLOCK frame", f"{block_b:.1f} B per sample in a full block of {per_block}: "
+        f"{LINE_BAUD / 10 / block_b:.0f} samples/s at {LINE_BAUD // 1000} kbaud (simavr figures: "
+        "scripts/bench/wire_limit.py)", f"ADS1115 {ADS1115_SPS} samples/s")
 
 
 if __name__ == "__main__":
