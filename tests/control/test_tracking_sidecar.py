@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import struct
 import json
+import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.control.helpers import STEPS_TEXT, SCHEME2, run_text
+from tests.control.helpers import STEPS_TEXT, run_text
+from tests.runner.helpers import KillWhen
 from tsa_bench.store import RunWriter
 from tsa_bench.store.live import RECORD, LiveFormatError, LiveSidecar, LiveTail, sidecar_path
 from tsa_bench.store.recover import recover_killed_run
@@ -22,22 +24,9 @@ def _killed_tracking_child(out: str) -> None:
     path = os.path.join(out, "run.h5")
     side = LiveSidecar(path)
 
-    class Kill:
-        tracked = 0
+    kill = KillWhen(side, lambda block: (block.columns["controller_state"] > 0).sum(), 300)
 
-        def on_samples(self, block) -> None:
-            self.tracked += int((block.columns["controller_state"] > 0).sum())
-            if self.tracked >= 300:
-                side._f.flush()          # the sidecar's 0.1 s flush has happened; the run file's has not
-                os._exit(9)
-
-        def on_start(self, _): ...
-        def on_segment(self, _): ...
-        def on_event(self, _): ...
-        def on_stop(self, _): ...
-
-    from pathlib import Path
-    run_text(STEPS_TEXT, Path(out), consumers=[side, Kill()], writer=RunWriter(path, flush_interval_s=600),
+    run_text(STEPS_TEXT, Path(out), consumers=[side, kill], writer=RunWriter(path, flush_interval_s=600),
              block_samples=1)   # one sample per block: killed mid-run
     os._exit(0)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import serial
@@ -45,3 +46,23 @@ def plan_from_text(text: str):
 
 def shipped_plan(name: str):
     return load_plan(Path(__file__).resolve().parents[2] / "configs" / "protocols" / name, BENCH.limits)
+
+
+class KillWhen:
+    """Run consumer that dies like `kill -9` (``os._exit(9)``) once ``count(block)`` summed over
+    the blocks seen reaches ``at_least``, after flushing ``sidecar`` (its 0.1 s flush has
+    happened; the run file's has not). Place it after the writer and the sidecar."""
+
+    def __init__(self, sidecar, count, at_least: int) -> None:
+        self.sidecar, self.count, self.at_least, self.seen = sidecar, count, at_least, 0
+
+    def on_samples(self, block) -> None:
+        self.seen += int(self.count(block))
+        if self.seen >= self.at_least:
+            self.sidecar._f.flush()
+            os._exit(9)
+
+    def on_start(self, _) -> None: ...
+    def on_segment(self, _) -> None: ...
+    def on_event(self, _) -> None: ...
+    def on_stop(self, _) -> None: ...

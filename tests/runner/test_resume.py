@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from tests.runner.helpers import BENCH, open_sim, plan_from_text, run_plan
+from tests.runner.helpers import BENCH, KillWhen, open_sim, plan_from_text, run_plan
 from tsa_bench.cli import main
 from tsa_bench.device import BenchClient
 from tsa_bench.runner import AutoOperator, Runner
@@ -123,21 +123,11 @@ def _killed_child(path: str, k: int) -> None:
     plan = plan_from_text(PROTOCOL)
     side = LiveSidecar(path)
 
-    class Kill:
-        def on_samples(self, block) -> None:
-            if (block.columns["segment"] >= k).sum() >= 3:
-                side._f.flush()          # the sidecar's 0.1 s flush has happened; the run file's has not
-                os._exit(9)
-
-        def on_start(self, _): ...
-        def on_segment(self, _): ...
-        def on_event(self, _): ...
-        def on_stop(self, _): ...
-
+    kill = KillWhen(side, lambda block: (block.columns["segment"] >= k).sum(), 3)
     port = open_sim(7)
     client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s)
     client.connect(BENCH.boot_timeout_s)
-    Runner(client, plan, BENCH, [RunWriter(path, flush_interval_s=60), side, Kill()], AutoOperator(),
+    Runner(client, plan, BENCH, [RunWriter(path, flush_interval_s=60), side, kill], AutoOperator(),
            backend="sim", port_name="sim://", block_samples=1).run()  # blocks per read: killed mid-run
     os._exit(0)
 

@@ -77,7 +77,7 @@ def record_dtype(extra_columns: dict[str, tuple[str, str, dict[str, str]]] | Non
     """
     fields = list(RECORD.descr)
     for name, spec in (extra_columns or {}).items():
-        dt = np.dtype(spec[0]).newbyteorder("<") if np.dtype(spec[0]).itemsize > 1 else np.dtype(spec[0])
+        dt = np.dtype(spec[0]).newbyteorder("<")
         if dt.str in EXTRA_TYPES and name not in RECORD.names and len(fields) < len(RECORD.descr) + MAX_EXTRA_COLUMNS:
             fields.append((name, dt.str))
     return np.dtype(fields)

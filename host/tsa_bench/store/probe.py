@@ -39,7 +39,6 @@ _EXIT_DONE, _EXIT_MEMORY = 0, 3
 
 def _read_everything_small(path: Path) -> None:
     import h5py
-    import numpy as np
 
     with h5py.File(path, "r") as f:
         seen = [0]
@@ -62,7 +61,6 @@ def _read_everything_small(path: Path) -> None:
                     first = (0,) * obj.ndim
                     last = tuple(int(n) - 1 for n in obj.shape)
                     obj[first], obj[last]
-                np.dtype(obj.dtype)
 
         attrs(f)
         try:
