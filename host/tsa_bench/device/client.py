@@ -65,6 +65,8 @@ class BenchClient:
             callable(getattr(type(port), "write_frame", None))
         self._read_frames = port.read_frames if frame_port else None
         self._write_frame = port.write_frame if frame_port else None
+        self._set_batching = port.set_batching if frame_port and callable(
+            getattr(type(port), "set_batching", None)) else None
 
     @property
     def retry_budget_s(self) -> float:
@@ -119,6 +121,17 @@ class BenchClient:
 
     def _port_name(self) -> str:
         return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
+
+    def set_batching(self, on: bool) -> bool:
+        """Ask an in-process simulated device (``sim://``) for batched delivery: fewer,
+        longer steps that do not stop at segment events while more commands wait in its
+        queue (``Serial.set_batching``). Only for stretches where nothing the caller
+        decides depends on when it sees samples or events. False (and nothing changes)
+        on any other port: a real line, a pty, simavr."""
+        if self._set_batching is None:
+            return False
+        self._set_batching(on)
+        return True
 
     # -- session ----------------------------------------------------------
     def connect(self, boot_timeout_s: float = 3.0, baud: int | None = None) -> msg.Identity:

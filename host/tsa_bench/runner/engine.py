@@ -124,9 +124,20 @@ class Runner:
         self.samples_lost = 0
         self.samples_discarded = 0
         self._segments_done = 0
-        # heartbeat every 1/16 of the watchdog: seen through sample timestamps that lag the
-        # device clock, the gap the device sees stays within an eighth of the watchdog
+        # heartbeat after 1/16 of the watchdog of wall time (a real device's clock), or a
+        # quarter of it of device time as seen in what the device sends (a simulated device
+        # runs at most half its watchdog per read: the gap it sees stays within 3/4 of it)
         self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
+        self._heartbeat_dev_s = self.ident.watchdog_ms / 4000.0
+        # batched delivery (sim:// only): on while no segment the host decides from samples
+        # or from when it sees them (settle, track_length, prompt) is near
+        self._closed_next = [n] * (n + 1)   # the first such segment at or after each index
+        for i in range(n - 1, -1, -1):
+            self._closed_next[i] = i if isinstance(plan.segments[i].action, (Prompt, Settle, TrackLength)) \
+                else self._closed_next[i + 1]
+        self._batch_margin = 2 * self.ident.queue_slots + 2
+        self._may_batch = False
+        self._batching = False
         self._tracking = Tracking.for_plan(plan, self.spt)   # track_length segments (runner/tracking.py)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
@@ -183,9 +194,12 @@ class Runner:
             try:
                 self._emit("on_start", start)
                 self._setup()
+                self._may_batch = True
                 while self._oldest < len(plan.segments):
                     self._feed()
                     self._pump()
+                self._may_batch = False
+                self._batch(False)
                 self._teardown()
                 self.interrupts.stopping()
                 if self.interrupts.requested:  # asked to stop before the file closed: honour it
@@ -271,7 +285,9 @@ class Runner:
         """STOP (always sent, retransmitted until acknowledged or the budget ends), then
         what the device said meanwhile, unless a second signal asks to hurry."""
         self.interrupts.stopping()
+        self._may_batch = False
         try:
+            self._batch(False)
             self.client.stop()
             self._event("stop_sent", "STOP sent: motor halted, heater off, queue cleared")
             if self.interrupts.hurry:
@@ -379,9 +395,21 @@ class Runner:
         self._finish_segment(seg.index, t_start, self._t(self._now_us), True)
         self._next += 1
 
+    def _batch(self, on: bool) -> None:
+        if on != self._batching:
+            self._batching = on and self.client.set_batching(True)
+            if not on:
+                self.client.set_batching(False)
+
     def _pump(self) -> None:
         """Read and handle what the device sent; heartbeat; detect silence."""
         self.interrupts.check()
+        if self._may_batch:
+            # batched delivery only where what the runner sends cannot depend on when it sees
+            # frames: no settle, track_length or prompt segment among those queued on the
+            # device or within twice the queue of the next to send (a refill sends at most
+            # one queue's worth); the device stops where the queue needs feeding
+            self._batch(self._closed_next[self._oldest] > self._next + self._batch_margin)
         messages = self.client.poll()
         wall = time.monotonic()
         if messages:
@@ -393,7 +421,7 @@ class Runner:
                             f"{wall - self._last_rx_wall:.1f} s")
         if len(self._rows) >= self.block_samples or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
             self._flush_rows()
-        if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_s
+        if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_dev_s
                 or wall - self.client.last_tx_wall >= self._heartbeat_s):
             self._command(msg.Heartbeat())
 

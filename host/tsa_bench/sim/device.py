@@ -99,6 +99,8 @@ _BLOCK_ENTRY_BYTES = _BLOCK_SPEC.entry_struct.size  # type: ignore[union-attr]
 
 
 _STATE = msg.DeviceState
+_STARTED = int(msg.EventKind.SEGMENT_STARTED)
+_DONE = int(msg.EventKind.SEGMENT_DONE)
 _FRAME_SIZES: dict[type, int] = {}   # message class -> its frame's size on the wire
 
 
@@ -140,6 +142,8 @@ class SimDevice:
         self._counter = 0
         self._block = BlockBuilder()     # continuous sampling: samples waiting for their SAMPLE_BLOCK
         self._step_us = 0.0              # continuous sampling: us between samples (ADS1115 conversions)
+        #: set by the in-process port while the host decides nothing from samples (see advance)
+        self.batch_segment_events = False
 
     # -- public -----------------------------------------------------------
     @property
@@ -171,6 +175,11 @@ class SimDevice:
     @property
     def sampling_period_us(self) -> int:
         return self._period_us
+
+    @property
+    def last_host_s(self) -> float:
+        """Virtual time of the last valid host frame (the watchdog counts from it)."""
+        return self._last_host_s
 
     @property
     def has_urgent_output(self) -> bool:
@@ -233,7 +242,12 @@ class SimDevice:
 
         Stops once this call has produced a non-SAMPLE frame (ACK, EVENT, ...) or
         ``max_output_bytes`` bytes, or after ``max_dt_s``; when it stops early the time
-        rests on the last event handled. Output already pending does not stop it.
+        rests on the last event handled. Output already pending does not stop it. While
+        :attr:`batch_segment_events` is set, SEGMENT_DONE, and SEGMENT_STARTED with more
+        commands still waiting in the queue, do not stop it either (they are sent all the
+        same, in order): it stops at the start of the last queued command, at QUEUE_EMPTY
+        and at every other non-SAMPLE frame, the moments a host that keeps the queue fed
+        must act at.
         """
         start = self.now_s
         end = start + max(0.0, max_dt_s)
@@ -278,7 +292,7 @@ class SimDevice:
     def _t_us(self, t_s: float) -> int:
         return round(t_s * 1e6)
 
-    def _send(self, message: NamedTuple) -> None:
+    def _send(self, message: NamedTuple, urgent: bool = True) -> None:
         if self._held is not None:
             self._held.append(message)
             return
@@ -295,11 +309,16 @@ class SimDevice:
             self._frames.append((Frame(self._seq, message), n))
             self._produced += n
         self._seq = (self._seq + 1) & 0xFFFF
-        self._urgent = True
-        self._urgent_sent += 1
+        if urgent:
+            self._urgent = True
+            self._urgent_sent += 1
 
     def _emit_event(self, t_s: float, kind: int, segment: int, value: int, code: int = 0) -> None:
-        self._send(msg.Event(self._t_us(t_s), kind, segment, code, value))
+        event = msg.Event(self._t_us(t_s), kind, segment, code, value)
+        if self.batch_segment_events and (kind == _DONE or (kind == _STARTED and self.executor.queued > 0)):
+            self._send(event, urgent=False)   # more commands wait behind it: the host need not act now
+        else:
+            self._send(event)
 
     def _take_sample(self) -> None:
         t = self.now_s

@@ -119,12 +119,14 @@ class Pacer:
         self.quantum_s = quantum_s(device)
         self.t0_wall = time.monotonic()
 
-    def allowed_s(self) -> float:
-        """Virtual seconds the device may advance now (<= 0: it must wait)."""
+    def allowed_s(self, step_s: float | None = None) -> float:
+        """Virtual seconds the device may advance now, at most ``step_s`` (default one
+        quantum); <= 0: it must wait."""
+        step = self.quantum_s if step_s is None else step_s
         if self.speed is None:
-            return self.quantum_s
+            return step
         ahead = (time.monotonic() - self.t0_wall) * self.speed - self.device.now_s
-        return min(self.quantum_s, ahead)
+        return min(step, ahead)
 
     def wait_s(self) -> float:
         """Wall seconds until the device may advance again (0 when it may now)."""
@@ -147,6 +149,7 @@ class Serial(SerialBase):
         self._head_read = 0
         self._raw_pending = 0                    # raw-bytes items in _rx
         self._bytes_decoder = MessageDecoder()   # for raw bytes among frames (the boot delimiter)
+        self._batching = False
         super().__init__(*args, **kwargs)
 
     # -- lifecycle --------------------------------------------------------
@@ -161,6 +164,7 @@ class Serial(SerialBase):
         self.device.boot()
         self._rx.clear()
         self._rx_bytes = self._head_read = self._raw_pending = 0
+        self._batching = False
         self._collect()
         self.is_open = True
 
@@ -206,16 +210,34 @@ class Serial(SerialBase):
         dev, pacer = self._check_open(), self._pacer
         assert pacer is not None
         budget = pacer.quantum_s
-        while budget > 1e-9 and not self._rx:
-            step = min(budget, pacer.allowed_s())
-            if step <= 0:
-                remaining = 0.0 if deadline is None else deadline - time.monotonic()
-                if remaining <= 0:
-                    return
-                time.sleep(min(remaining, max(pacer.wait_s(), 1e-4)))
-                continue
-            budget -= dev.advance(step, max_bytes)
-            self._collect()
+        if self._batching:   # up to half the watchdog past the host's last frame, if that is more
+            room = dev.last_host_s + dev.limits.watchdog_s / 2 - dev.now_s
+            if room > budget:
+                budget = room
+                dev.batch_segment_events = True
+        try:
+            while budget > 1e-9 and not self._rx:
+                step = min(budget, pacer.allowed_s(budget))
+                if step <= 0:
+                    remaining = 0.0 if deadline is None else deadline - time.monotonic()
+                    if remaining <= 0:
+                        return
+                    time.sleep(min(remaining, max(pacer.wait_s(), 1e-4)))
+                    continue
+                budget -= dev.advance(step, max_bytes)
+                self._collect()
+        finally:
+            dev.batch_segment_events = False
+
+    def set_batching(self, on: bool) -> None:
+        """Batched delivery (in-process hosts only; off after ``open``): while on, the
+        device runs up to half its watchdog past the host's last frame per step instead
+        of one quantum, and does not stop at segment events the host need not act on
+        (:meth:`SimDevice.advance`). A host turns it on only while nothing it decides
+        depends on when it sees samples or events (an open-loop stretch of its plan
+        with the device queue kept fed): then the host sees every frame, in the same
+        order, just in fewer reads, and the device's course is the same."""
+        self._batching = bool(on)
 
     @property
     def in_waiting(self) -> int:
