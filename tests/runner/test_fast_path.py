@@ -89,6 +89,52 @@ def test_fast_and_framed_paths_record_the_same_file(tmp_path):
     assert len(a["samples/t"]) > 500 and any(e[1] == b"settled" or e[1] == b"not_settled" for e in a["events"])
 
 
+OPEN_LOOP = """name: open-loop-stretches
+load_g: 300
+sampling_period_s: 0.1
+defaults: {rate_turns_per_s: 4, accel_turns_per_s2: 40}
+steps:
+  - move_to: {turns: 5}
+  - repeat:
+      count: 12
+      steps:
+        - rotation_sequence: {targets_turns: [6, 7, 6, 5], hold_s: 0.2}
+        - heater: {voltage_V: 1}
+        - heater: {voltage_V: 0}
+  - hold_until_settled: {max_duration_s: 3, window_s: 1, max_dL_dt_mm_per_s: 1.0}
+  - repeat:
+      count: 10
+      steps:
+        - rotation_sequence: {targets_turns: [6, 5], hold_s: 0.3}
+  - prompt: {text: "hang 500 g", load_g: 500}
+  - repeat:
+      count: 10
+      steps:
+        - rotation_sequence: {targets_turns: [7, 5], hold_s: 0.1}
+  - hold: {duration_s: 5}
+"""
+
+
+def test_batched_delivery_records_the_same_file_as_the_framed_path(tmp_path):
+    """Long open-loop stretches (where sim:// delivers in batches) around a settling hold
+    and a prompt (where it must not): the same file as frame by frame over bytes."""
+    plan = plan_from_text(OPEN_LOOP)
+    (tmp_path / "fast").mkdir()
+    (tmp_path / "framed").mkdir()
+    fast_port = open_sim(5)
+    fast_stop, _, fast = run_plan(plan, tmp_path / "fast", port=fast_port)
+    framed_stop, _, framed = run_plan(plan, tmp_path / "framed", port=BytesOnly(open_sim(5)), block_samples=1)
+    assert fast_stop.exit_status == framed_stop.exit_status == "success"
+    assert fast_port.batched_steps >= 10          # batching was on for a good part of the run
+    a, b = _contents(fast), _contents(framed)
+    for key in a:
+        if key.startswith("samples/"):
+            assert np.array_equal(a[key], b[key], equal_nan=a[key].dtype.kind == "f"), key
+        else:
+            assert a[key] == b[key], key
+    assert len(a["segments"]) == len(plan.segments)
+
+
 def test_the_writers_running_statistics_match_the_file(tmp_path):
     writer = RunWriter(tmp_path / "run.h5")
     stop, _, path = run_plan(plan_from_text(PLAN), tmp_path, seed=4, writer=writer)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from simhost import events
+
 from tsa_bench.protocol import msg
 
 S = msg.Status
@@ -71,3 +73,33 @@ def test_fault_latched_refuses_queued_commands(host):
     # immediate commands still work
     assert host.ack(msg.Stop()).status == S.OK
     assert host.ack(msg.SimSetLoad(1000)).status == S.OK
+
+
+def _advance_to_stop(host, batch: bool) -> list:
+    """One advance (up to 10 s) with or without batched segment events; what it produced."""
+    host.dev.batch_segment_events = batch
+    try:
+        host.dev.advance(10.0, 1 << 20)
+    finally:
+        host.dev.batch_segment_events = False
+    return host._collect()
+
+
+def test_batched_advance_stops_only_where_the_queue_needs_feeding(host):
+    """With batch_segment_events, SEGMENT_DONE and SEGMENT_STARTED with more commands
+    waiting do not stop an advance; the start of the last queued command and
+    QUEUE_EMPTY do. Without it, every event does."""
+    E = msg.EventKind
+    for i in range(4):
+        host.ack(msg.Dwell(i, 100_000))          # 0 runs at once, 1..3 wait
+    plain = _advance_to_stop(host, batch=False)
+    # stopped at the first end (the next start comes in the same instant)
+    assert [(m.kind, m.segment) for m in events(plain)] == [(E.SEGMENT_DONE, 0), (E.SEGMENT_STARTED, 1)]
+    batched = _advance_to_stop(host, batch=True)
+    # 1 done, 2 started (3 waits: on), 2 done, 3 started: the last queued, stop
+    assert [(m.kind, m.segment) for m in events(batched)] == [
+        (E.SEGMENT_DONE, 1), (E.SEGMENT_STARTED, 2), (E.SEGMENT_DONE, 2), (E.SEGMENT_STARTED, 3)]
+    assert abs(host.dev.now_s - 0.3) < 1e-9     # at segment 3's start, as an unbatched host would see it
+    last = _advance_to_stop(host, batch=True)
+    assert [(m.kind, m.segment) for m in events(last)] == [(E.SEGMENT_DONE, 3), (E.QUEUE_EMPTY, 3)]
+    assert abs(host.dev.now_s - 0.4) < 1e-9

@@ -150,6 +150,7 @@ class Serial(SerialBase):
         self._raw_pending = 0                    # raw-bytes items in _rx
         self._bytes_decoder = MessageDecoder()   # for raw bytes among frames (the boot delimiter)
         self._batching = False
+        self.batched_steps = 0                   # device steps run batched (set_batching)
         super().__init__(*args, **kwargs)
 
     # -- lifecycle --------------------------------------------------------
@@ -215,6 +216,7 @@ class Serial(SerialBase):
             if room > budget:
                 budget = room
                 dev.batch_segment_events = True
+                self.batched_steps += 1
         try:
             while budget > 1e-9 and not self._rx:
                 step = min(budget, pacer.allowed_s(budget))
