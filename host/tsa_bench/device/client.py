@@ -122,6 +122,12 @@ class BenchClient:
     def _port_name(self) -> str:
         return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
 
+    @property
+    def in_process(self) -> bool:
+        """The device is simulated in this process (``sim://``): frames pass without bytes,
+        and no line can stall, lose or reorder them."""
+        return self._write_frame is not None
+
     def set_batching(self, on: bool) -> bool:
         """Ask an in-process simulated device (``sim://``) for batched delivery: fewer,
         longer steps that do not stop at segment events while more commands wait in its

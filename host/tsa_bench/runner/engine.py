@@ -124,11 +124,13 @@ class Runner:
         self.samples_lost = 0
         self.samples_discarded = 0
         self._segments_done = 0
-        # heartbeat after 1/16 of the watchdog of wall time (a real device's clock), or a
-        # quarter of it of device time as seen in what the device sends (a simulated device
-        # runs at most half its watchdog per read: the gap it sees stays within 3/4 of it)
+        # heartbeat after 1/16 of the watchdog of wall time or of device time as seen in
+        # what the device sends (timestamps lag the device clock: the gap the device sees
+        # stays within an eighth of the watchdog, so a line that stalls for less than the rest
+        # never trips it); in process (sim://: no line to stall; the device runs at most half
+        # its watchdog past the host's last frame per read) a quarter of it of device time
         self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
-        self._heartbeat_dev_s = self.ident.watchdog_ms / 4000.0
+        self._heartbeat_dev_s = self.ident.watchdog_ms / 4000.0 if client.in_process else self._heartbeat_s
         # batched delivery (sim:// only): on while no segment the host decides from samples
         # or from when it sees them (settle, track_length, prompt) is near
         self._closed_next = [n] * (n + 1)   # the first such segment at or after each index
