@@ -128,6 +128,12 @@ class BenchClient:
         and no line can stall, lose or reorder them."""
         return self._write_frame is not None
 
+    @property
+    def device_now_us(self) -> int | None:
+        """In process: the simulated device's clock (us since boot); else None (a real
+        device's clock is known only from the timestamps it sends)."""
+        return self.port.device_time_us if self._set_batching is not None else None
+
     def set_batching(self, on: bool) -> bool:
         """Ask an in-process simulated device (``sim://``) for batched delivery: fewer,
         longer steps that do not stop at segment events while more commands wait in its

@@ -104,6 +104,8 @@ class Runner:
         self._settle_done_t: float | None = None  # when its last queued DWELL ended
         self._settle_outcome: dict[int, dict] = {}  # what each decided settling hold found
         self._free = self.ident.queue_slots
+        self._sent = 0                  # commands sent (ACKed or not)
+        self._sent_at_heartbeat = -1    # _sent just after the runner's last heartbeat
         self._last_sent_wire = NO_SEGMENT
         self._t0_us: int | None = None
         self._now_us = 0
@@ -127,10 +129,13 @@ class Runner:
         # heartbeat after 1/16 of the watchdog of wall time or of device time as seen in
         # what the device sends (timestamps lag the device clock: the gap the device sees
         # stays within an eighth of the watchdog, so a line that stalls for less than the rest
-        # never trips it); in process (sim://: no line to stall; the device runs at most half
-        # its watchdog past the host's last frame per read) a quarter of it of device time
+        # never trips it). In process (sim://: no line to stall) after half the watchdog of
+        # the device's own clock: a read runs it at most a quarter of the watchdog (two
+        # quanta), or in a batch up to 3/4 of it past the host's last frame, so the gap the
+        # device sees stays within 3/4 of its watchdog
         self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
-        self._heartbeat_dev_s = self.ident.watchdog_ms / 4000.0 if client.in_process else self._heartbeat_s
+        self._device_clock = client.device_now_us is not None
+        self._heartbeat_dev_s = self.ident.watchdog_ms / 2000.0 if self._device_clock else self._heartbeat_s
         # batched delivery (sim:// only): on while no segment the host decides from samples
         # or from when it sees them (settle, track_length, prompt) is near
         self._closed_next = [n] * (n + 1)   # the first such segment at or after each index
@@ -172,8 +177,13 @@ class Runner:
 
     def _command(self, message: NamedTuple) -> msg.Ack:
         ack = self.client.command(message, check=False)
-        self._last_tx_dev_us = self._now_us
+        self._last_tx_dev_us = self._dev_now_us()
+        self._sent += 1
         return ack
+
+    def _dev_now_us(self) -> int:
+        """The device clock as far as the runner knows it (in process: exactly)."""
+        return self.client.device_now_us if self._device_clock else self._now_us  # type: ignore[return-value]
 
     # -- main loop -----------------------------------------------------------
     def run(self) -> RunStop:
@@ -423,9 +433,10 @@ class Runner:
                             f"{wall - self._last_rx_wall:.1f} s")
         if len(self._rows) >= self.block_samples or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
             self._flush_rows()
-        if ((self._now_us - self._last_tx_dev_us) / 1e6 >= self._heartbeat_dev_s
+        if ((self._dev_now_us() - self._last_tx_dev_us) / 1e6 >= self._heartbeat_dev_s
                 or wall - self.client.last_tx_wall >= self._heartbeat_s):
             self._command(msg.Heartbeat())
+            self._sent_at_heartbeat = self._sent
 
     # -- incoming messages -----------------------------------------------------
     def _handle(self, m: NamedTuple) -> None:
@@ -438,7 +449,10 @@ class Runner:
             self._now_us = max(self._now_us, m.t_us)
             if self._t0_us is None:
                 self._t0_us = m.t_us
-            self._free = m.queue_free
+            if self._sent == self._sent_at_heartbeat:
+                # it answers the last heartbeat, and no command's ACK since says more
+                # (a stale count would only cost a refused, resent command)
+                self._free = m.queue_free
             if m.fault:
                 raise RunFailed(f"device fault latched: {msg.Fault(m.fault).name.lower()}")
             if (not m.executing and m.queue_free == self.ident.queue_slots and self._oldest < self._next

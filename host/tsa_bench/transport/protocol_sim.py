@@ -51,6 +51,8 @@ __all__ = ["Serial", "SimUrl", "parse_sim_url", "Pacer", "quantum_s"]
 URL_HELP = 'expected "sim://[?bench=PATH][&speed=X][&seed=N]"'
 #: Output bytes one ``in_waiting`` poll lets the device produce at most.
 POLL_CHUNK_BYTES = 4096
+#: Batched delivery: how far past the host's last frame (in watchdog periods) a step may run.
+BATCH_WATCHDOG_SHARE = 0.75
 
 
 @dataclass(frozen=True)
@@ -211,8 +213,8 @@ class Serial(SerialBase):
         dev, pacer = self._check_open(), self._pacer
         assert pacer is not None
         budget = pacer.quantum_s
-        if self._batching:   # up to half the watchdog past the host's last frame, if that is more
-            room = dev.last_host_s + dev.limits.watchdog_s / 2 - dev.now_s
+        if self._batching:   # up to 3/4 of the watchdog past the host's last frame, if that is more
+            room = dev.last_host_s + dev.limits.watchdog_s * BATCH_WATCHDOG_SHARE - dev.now_s
             if room > budget:
                 budget = room
                 dev.batch_segment_events = True
@@ -231,9 +233,14 @@ class Serial(SerialBase):
         finally:
             dev.batch_segment_events = False
 
+    @property
+    def device_time_us(self) -> int:
+        """The simulated device's clock now (us since boot), for an in-process host."""
+        return round(self._check_open().now_s * 1e6)
+
     def set_batching(self, on: bool) -> None:
         """Batched delivery (in-process hosts only; off after ``open``): while on, the
-        device runs up to half its watchdog past the host's last frame per step instead
+        device runs up to 3/4 of its watchdog past the host's last frame per step instead
         of one quantum, and does not stop at segment events the host need not act on
         (:meth:`SimDevice.advance`). A host turns it on only while nothing it decides
         depends on when it sees samples or events (an open-loop stretch of its plan
