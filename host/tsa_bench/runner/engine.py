@@ -416,6 +416,8 @@ class Runner:
     def _pump(self) -> None:
         """Read and handle what the device sent; heartbeat; detect silence."""
         self.interrupts.check()
+        if self._device_clock:   # before the read (after _feed's commands): it is the read that runs the device
+            self._heartbeat_if_due(time.monotonic())
         if self._may_batch:
             # batched delivery only where what the runner sends cannot depend on when it sees
             # frames: no settle, track_length or prompt segment among those queued on the
@@ -433,6 +435,10 @@ class Runner:
                             f"{wall - self._last_rx_wall:.1f} s")
         if len(self._rows) >= self.block_samples or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
             self._flush_rows()
+        if not self._device_clock:
+            self._heartbeat_if_due(wall)
+
+    def _heartbeat_if_due(self, wall: float) -> None:
         if ((self._dev_now_us() - self._last_tx_dev_us) / 1e6 >= self._heartbeat_dev_s
                 or wall - self.client.last_tx_wall >= self._heartbeat_s):
             self._command(msg.Heartbeat())
