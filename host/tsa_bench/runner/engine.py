@@ -51,7 +51,7 @@ from tsa_bench.runner.interrupts import Interrupts
 from tsa_bench.runner.operator import Operator
 from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
-from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, row, sample_block
+from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, sample_block
 from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
 from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
 
@@ -119,7 +119,8 @@ class Runner:
         self._last_status: msg.QueueStatus | None = None
         self._rows: list[tuple] = []
         self.block_samples = max(1, int(block_samples))  # 1: documents handed over at every read
-        self._later: list[tuple[str, object]] = []   # documents waiting for the rows before them
+        # documents waiting for the rows before them: (how many of _rows came before, name, doc)
+        self._later: list[tuple[int, str, object]] = []
         self._last_block_wall = time.monotonic()
         self._last_counter: int | None = None
         self.samples = 0
@@ -157,7 +158,7 @@ class Runner:
         """A segment record or event: emitted after the samples received before it, with
         the next sample block (at once when no samples are pending)."""
         if self._rows:
-            self._later.append((name, doc))
+            self._later.append((len(self._rows), name, doc))
         else:
             self._emit(name, doc)
 
@@ -428,12 +429,19 @@ class Runner:
         wall = time.monotonic()
         if messages:
             self._last_rx_wall = wall
+            sample, on_sample, handle = msg.Sample, self._on_sample, self._handle
             for m in messages:
-                self._handle(m)
+                if type(m) is sample:
+                    on_sample(m)
+                else:
+                    handle(m)
         elif wall - self._last_rx_wall > self._silence_s:
             raise RunFailed(f"lost connection: the device on {self.port_name} has been silent for "
                             f"{wall - self._last_rx_wall:.1f} s")
-        if len(self._rows) >= self.block_samples or (self._rows and wall - self._last_block_wall >= BLOCK_WALL_S):
+        if len(self._rows) >= self.block_samples:
+            while len(self._rows) >= self.block_samples:   # whole blocks: the writer's chunks stay aligned
+                self._flush_rows(self.block_samples)
+        elif self._rows and wall - self._last_block_wall >= BLOCK_WALL_S:
             self._flush_rows()
         if not self._device_clock:
             self._heartbeat_if_due(wall)
@@ -477,20 +485,24 @@ class Runner:
             raise RunFailed("the device rebooted during the run (power or reset?); data so far kept")
 
     def _on_sample(self, s: msg.Sample) -> None:
-        if self._last_counter is not None:
+        counter, t_us = s.counter, s.t_us
+        last = self._last_counter
+        if last is not None and counter != (last + 1) & 0xFFFFFFFF:   # not simply the next one
             # signed distance on the wrapping u32 counter: <= 0 is a repeat or out of order
-            step = (s.counter - self._last_counter + COUNTER_MOD // 2) % COUNTER_MOD - COUNTER_MOD // 2
+            step = (counter - last + COUNTER_MOD // 2) % COUNTER_MOD - COUNTER_MOD // 2
             if step <= 0:
                 self.samples_discarded += 1
                 return
             gap = step - 1
-            if gap:
-                self.samples_lost += gap
-                self._event("sample_gap", f"{gap} sample(s) lost before counter {s.counter}", s.t_us)
-        self._now_us = max(self._now_us, s.t_us)
-        self._last_counter = s.counter
+            self.samples_lost += gap
+            self._event("sample_gap", f"{gap} sample(s) lost before counter {counter}", t_us)
+        if t_us > self._now_us:
+            self._now_us = t_us
+        self._last_counter = counter
         seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
-        self._rows.append(row(s, seg, self._load_g))
+        # a row for sample_block (runner/samples.py row(), inline: once per sample)
+        self._rows.append((t_us, s.step_position, s.position_raw, s.resistance_raw, s.adc_flags, s.heater_mV,
+                           s.motor_moving, seg, counter, self._load_g))
         self.samples += 1
         if self._tracking is not None:
             self._tracking.on_sample(self._t(s.t_us), resistance_ohm(self.bench, s.resistance_raw, s.adc_flags),
@@ -566,19 +578,30 @@ class Runner:
             if not self._done[idx] and not np.isnan(self._t_start[idx]):
                 self._finish_segment(idx, float(self._t_start[idx]), self._t(self._now_us), False)
 
-    def _flush_rows(self) -> None:
-        """Emit the pending samples as one block, then the documents that came after them."""
-        if self._rows:
-            rows, self._rows = self._rows, []
+    def _flush_rows(self, limit: int | None = None) -> None:
+        """Emit the pending samples (the first ``limit`` of them) as one block, then the
+        documents that came after them and before the samples still pending."""
+        n = len(self._rows) if limit is None else min(limit, len(self._rows))
+        later = self._later
+        k = 0
+        while k < len(later) and later[k][0] <= n:
+            k += 1
+        docs = later[:k]
+        self._later = [(at - n, name, doc) for at, name, doc in later[k:]]
+        if n:
+            rows, self._rows = self._rows[:n], self._rows[n:]
             self._last_block_wall = time.monotonic()
-            block = sample_block(rows, self.bench, self.spt, self._t0_us or 0)
-            if self._tracking is not None:
-                self._tracking.annotate(block)
-            self._emit("on_samples", block)
-        docs, self._later = self._later, []
-        for i, (name, doc) in enumerate(docs):
+            try:
+                block = sample_block(rows, self.bench, self.spt, self._t0_us or 0)
+                if self._tracking is not None:
+                    self._tracking.annotate(block)
+                self._emit("on_samples", block)
+            except BaseException:
+                self._later[:0] = [(0, nm, d) for _, nm, d in docs]  # still emitted by the closing flush
+                raise
+        for i, (_, name, doc) in enumerate(docs):
             try:
                 self._emit(name, doc)
             except BaseException:
-                self._later[:0] = docs[i + 1:]  # still emitted by the closing flush
+                self._later[:0] = [(0, nm, d) for _, nm, d in docs[i + 1:]]  # still emitted by the closing flush
                 raise

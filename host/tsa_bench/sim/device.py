@@ -99,6 +99,8 @@ _BLOCK_ENTRY_BYTES = _BLOCK_SPEC.entry_struct.size  # type: ignore[union-attr]
 
 
 _STATE = msg.DeviceState
+_Sample = msg.Sample
+_new_tuple = tuple.__new__
 _STARTED = int(msg.EventKind.SEGMENT_STARTED)
 _DONE = int(msg.EventKind.SEGMENT_DONE)
 _FRAME_SIZES: dict[type, int] = {}   # message class -> its frame's size on the wire
@@ -350,8 +352,8 @@ class SimDevice:
             self._out += data
             self._produced += len(data)
             self._seq = (self._seq + 1) & 0xFFFF
-        else:
-            self._frames.append((Frame(self._seq, msg.Sample(*fields)), _SAMPLE_FRAME_BYTES))
+        else:   # tuple.__new__: the same Sample and Frame as their constructors make, without their Python frames
+            self._frames.append((_new_tuple(Frame, (self._seq, _new_tuple(_Sample, fields))), _SAMPLE_FRAME_BYTES))
             self._produced += _SAMPLE_FRAME_BYTES
             self._seq = (self._seq + 1) & 0xFFFF
         self._counter = (self._counter + 1) & 0xFFFFFFFF

@@ -52,12 +52,18 @@ class SimSensors:
         return counts, 0
 
     def convert(self, length_mm: float, resistance_ohm: float, heater_mV: int) -> tuple[int, int, int]:
-        """One SAMPLE's ``(position_raw, resistance_raw, adc_flags)``."""
-        position_raw = self.position_raw(length_mm)
+        """One SAMPLE's ``(position_raw, resistance_raw, adc_flags)`` (position_raw and
+        resistance_raw inline: this runs once per sample)."""
+        p = round((length_mm - self._offset_mm) * self._count_per_mm)
+        position_raw = INT16_MAX if p > INT16_MAX else INT16_MIN if p < INT16_MIN else p
         if heater_mV > 0:
             return position_raw, 0, _NOT_MEASURED
-        resistance_raw, flags = self.resistance_raw(resistance_ohm)
-        return position_raw, resistance_raw, flags
+        counts = round((resistance_ohm - self._offset_ohm) * self._count_per_ohm)
+        if counts > self._r_max:
+            return position_raw, self._r_max, _OVERRANGE
+        if counts < self._r_min:
+            return position_raw, self._r_min, _OVERRANGE
+        return position_raw, counts, 0
 
 
 #: CS5513 conversion period (s): 612 clocks of its slowest (32 kHz) on-chip oscillator,
