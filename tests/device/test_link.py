@@ -127,3 +127,14 @@ def test_in_order_runs_released_in_bulk_as_frame_by_frame(n, seed, start, drop, 
     remembered = len(got_bulk) + bulk.stats.late          # numbers remembered as they came
     assert len(bulk._released) == min(REMEMBER, remembered)
     assert {f.seq for f in got_bulk[-100:]} <= bulk._released
+
+
+def test_push_consecutive_releases_a_following_run_as_is_and_anything_else_as_push_does():
+    seq = FrameSequencer(clock=Clock())
+    assert [f.seq for f in seq.push_consecutive(frames([65534, 65535]))] == [65534, 65535]  # the first sets the count
+    run = frames([0, 1, 2, 3])                                   # follows on across the wrap
+    assert seq.push_consecutive(run) is run and seq.stats.released == 6
+    assert [f.seq for f in seq.push_consecutive(frames([5, 6]))] == []   # 4 missing: held, as push holds it
+    assert [f.seq for f in seq.push_consecutive(frames([4]))] == [4, 5, 6]
+    assert seq.stats.restored == 2 and seq.stats.lost == 0
+    assert [f.seq for f in seq.push_consecutive(frames([7, 9, 8]))] == [7, 8, 9]   # ends 2 apart, 3 frames

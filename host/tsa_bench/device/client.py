@@ -95,8 +95,14 @@ class BenchClient:
                 frames = self._decoder.feed(data) if data else []
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
-        frames = self._sequencer.push(frames)
-        out = expand(f.message for f in frames)   # a SAMPLE_BLOCK becomes its samples
+        if self._read_frames is not None:   # in process: in order and none lost (checked at its ends)
+            frames = self._sequencer.push_consecutive(frames)
+            out = [f.message for f in frames]
+            if msg.SampleBlock in set(map(type, out)):
+                out = expand(out)
+        else:
+            frames = self._sequencer.push(frames)
+            out = expand(f.message for f in frames)   # a SAMPLE_BLOCK becomes its samples
         for late in self._sequencer.take_late():
             if isinstance(late.message, msg.Ack):
                 self._late_acks.append(late.message)  # may still answer the command awaited now

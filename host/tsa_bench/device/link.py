@@ -183,6 +183,22 @@ class FrameSequencer:
         self._forget_oldest()
         return frames[n:] if n < len(frames) else []
 
+    def push_consecutive(self, frames: list[Frame]) -> list[Frame]:
+        """:meth:`push` for a source that cannot lose, repeat or reorder frames (a device
+        in the same process): frames that continue the count one number after another
+        (checked at both ends) are released as they are, without remembering each number
+        (no duplicate can follow); anything else takes the general path."""
+        n = len(frames)
+        if not n:
+            return frames if not self._held else self.push(frames)
+        expected = self._expected
+        first, last = frames[0].seq, frames[-1].seq
+        if self._held or expected is None or first != expected or (last - first) % SEQ_MOD != n - 1:
+            return self.push(frames)
+        self._expected = (last + 1) % SEQ_MOD
+        self.stats.released += n
+        return frames
+
     def take_late(self) -> list[Frame]:
         """Late frames seen since the last call."""
         late, self.late = self.late, []
