@@ -147,3 +147,40 @@ def test_the_writers_running_statistics_match_the_file(tmp_path):
         assert (k.count, k.finite) == (c.count, c.finite), name
         assert np.allclose([k.min, k.max, k.mean], [c.min, c.max, c.mean], rtol=1e-12, equal_nan=True), name
     assert BENCH.name  # the shipped simulated bench ran
+
+
+SPARSE = """name: sparse-samples
+load_g: 300
+sampling_period_s: 5
+defaults: {rate_turns_per_s: 4, accel_turns_per_s2: 40}
+steps:
+  - move_to: {turns: 3}
+  - hold: {duration_s: 40}
+  - repeat:
+      count: 40
+      steps:
+        - rotation_sequence: {targets_turns: [4, 3], hold_s: 0.5}
+  - hold: {duration_s: 20}
+"""
+
+
+def test_in_process_the_watchdog_is_kept_by_the_device_clock_with_few_heartbeats(tmp_path):
+    """Samples 5 s apart (their timestamps say little about the device clock) through long
+    holds and batched stretches: the in-process runner heartbeats by the device's own
+    clock, so the 2 s watchdog never trips, and the commands that feed the queue make
+    most heartbeats unnecessary."""
+    port = open_sim(8)
+    heartbeats = []
+    real = port.write_frame
+
+    def counting(data, seq, message):
+        heartbeats.append(type(message).__name__ == "Heartbeat")
+        return real(data, seq, message)
+
+    port.write_frame = counting
+    stop, client, path = run_plan(plan_from_text(SPARSE), tmp_path, port=port)
+    assert stop.exit_status == "success", stop.reason
+    device_s = stop.t_end
+    assert device_s > 100 and port.device.fault == 0
+    # at most one heartbeat per half watchdog (1 s) of device time, and far fewer frames than reads
+    assert 0 < sum(heartbeats) <= device_s / 1.0
