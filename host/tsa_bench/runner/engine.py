@@ -49,6 +49,7 @@ from tsa_bench.runner.documents import (
 )
 from tsa_bench.runner.interrupts import Interrupts
 from tsa_bench.runner.operator import Operator
+from tsa_bench.runner.pacing import Pacing
 from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
 from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, sample_block
@@ -127,25 +128,7 @@ class Runner:
         self.samples_lost = 0
         self.samples_discarded = 0
         self._segments_done = 0
-        # heartbeat after 1/16 of the watchdog of wall time or of device time as seen in
-        # what the device sends (timestamps lag the device clock: the gap the device sees
-        # stays within an eighth of the watchdog, so a line that stalls for less than the rest
-        # never trips it). In process (sim://: no line to stall) after half the watchdog of
-        # the device's own clock: a read runs it at most a quarter of the watchdog (two
-        # quanta), or in a batch up to 3/4 of it past the host's last frame, so the gap the
-        # device sees stays within 3/4 of its watchdog
-        self._heartbeat_s = max(0.05, self.ident.watchdog_ms / 16000.0)
-        self._device_clock = client.device_now_us is not None
-        self._heartbeat_dev_s = self.ident.watchdog_ms / 2000.0 if self._device_clock else self._heartbeat_s
-        # batched delivery (sim:// only): on while no segment the host decides from samples
-        # or from when it sees them (settle, track_length, prompt) is near
-        self._closed_next = [n] * (n + 1)   # the first such segment at or after each index
-        for i in range(n - 1, -1, -1):
-            self._closed_next[i] = i if isinstance(plan.segments[i].action, (Prompt, Settle, TrackLength)) \
-                else self._closed_next[i + 1]
-        self._batch_margin = 2 * self.ident.queue_slots + 2
-        self._may_batch = False
-        self._batching = False
+        self._pacing = Pacing(client, plan, self.ident)   # heartbeats, batched delivery (runner/pacing.py)
         self._tracking = Tracking.for_plan(plan, self.spt)   # track_length segments (runner/tracking.py)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
@@ -178,13 +161,9 @@ class Runner:
 
     def _command(self, message: NamedTuple) -> msg.Ack:
         ack = self.client.command(message, check=False)
-        self._last_tx_dev_us = self._dev_now_us()
+        self._last_tx_dev_us = self._pacing.device_now_us(self._now_us)
         self._sent += 1
         return ack
-
-    def _dev_now_us(self) -> int:
-        """The device clock as far as the runner knows it (in process: exactly)."""
-        return self.client.device_now_us if self._device_clock else self._now_us  # type: ignore[return-value]
 
     # -- main loop -----------------------------------------------------------
     def run(self) -> RunStop:
@@ -207,12 +186,11 @@ class Runner:
             try:
                 self._emit("on_start", start)
                 self._setup()
-                self._may_batch = True
+                self._pacing.allowed = True
                 while self._oldest < len(plan.segments):
                     self._feed()
                     self._pump()
-                self._may_batch = False
-                self._batch(False)
+                self._pacing.stop_batching()
                 self._teardown()
                 self.interrupts.stopping()
                 if self.interrupts.requested:  # asked to stop before the file closed: honour it
@@ -298,9 +276,8 @@ class Runner:
         """STOP (always sent, retransmitted until acknowledged or the budget ends), then
         what the device said meanwhile, unless a second signal asks to hurry."""
         self.interrupts.stopping()
-        self._may_batch = False
         try:
-            self._batch(False)
+            self._pacing.stop_batching()
             self.client.stop()
             self._event("stop_sent", "STOP sent: motor halted, heater off, queue cleared")
             if self.interrupts.hurry:
@@ -408,23 +385,13 @@ class Runner:
         self._finish_segment(seg.index, t_start, self._t(self._now_us), True)
         self._next += 1
 
-    def _batch(self, on: bool) -> None:
-        if on != self._batching:
-            self._batching = on and self.client.set_batching(True)
-            if not on:
-                self.client.set_batching(False)
-
     def _pump(self) -> None:
         """Read and handle what the device sent; heartbeat; detect silence."""
         self.interrupts.check()
-        if self._device_clock:   # before the read (after _feed's commands): it is the read that runs the device
+        pacing = self._pacing
+        if pacing.device_clock:   # before the read (after _feed's commands): it is the read that runs the device
             self._heartbeat_if_due(time.monotonic())
-        if self._may_batch:
-            # batched delivery only where what the runner sends cannot depend on when it sees
-            # frames: no settle, track_length or prompt segment among those queued on the
-            # device or within twice the queue of the next to send (a refill sends at most
-            # one queue's worth); the device stops where the queue needs feeding
-            self._batch(self._closed_next[self._oldest] > self._next + self._batch_margin)
+        pacing.update(self._oldest, self._next)
         messages = self.client.poll()
         wall = time.monotonic()
         if messages:
@@ -443,12 +410,11 @@ class Runner:
                 self._flush_rows(self.block_samples)
         elif self._rows and wall - self._last_block_wall >= BLOCK_WALL_S:
             self._flush_rows()
-        if not self._device_clock:
+        if not pacing.device_clock:
             self._heartbeat_if_due(wall)
 
     def _heartbeat_if_due(self, wall: float) -> None:
-        if ((self._dev_now_us() - self._last_tx_dev_us) / 1e6 >= self._heartbeat_dev_s
-                or wall - self.client.last_tx_wall >= self._heartbeat_s):
+        if self._pacing.heartbeat_due(self._pacing.device_now_us(self._now_us), self._last_tx_dev_us, wall):
             self._command(msg.Heartbeat())
             self._sent_at_heartbeat = self._sent
 
