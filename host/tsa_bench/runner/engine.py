@@ -23,6 +23,11 @@ Resume (:mod:`tsa_bench.runner.resume`): given a :class:`ResumePoint`, the runne
 starts at its segment (indices stay those of the plan), after set-up commands that
 bring the rig to the state the plan had there (sampling period, twist, heater, load).
 
+Pacing (:mod:`tsa_bench.runner.pacing`): when to heartbeat, and where a simulated device
+in this process may deliver in batches (open-loop stretches; the recorded run is the same).
+Samples are handed over in blocks of exactly ``block_samples`` rows (or what came within
+``BLOCK_WALL_S`` of wall time), each followed by the documents received after its rows.
+
 Link: samples are stored in counter order, each once: a sample whose counter is not
 after the last stored one (a duplicate or a late frame the link layer let through) is
 dropped and counted (``samples_discarded``), and ``samples_lost`` is exactly the sum of
