@@ -129,12 +129,6 @@ class BenchClient:
         return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
 
     @property
-    def in_process(self) -> bool:
-        """The device is simulated in this process (``sim://``): frames pass without bytes,
-        and no line can stall, lose or reorder them."""
-        return self._write_frame is not None
-
-    @property
     def device_now_us(self) -> int | None:
         """In process: the simulated device's clock (us since boot); else None (a real
         device's clock is known only from the timestamps it sends)."""
