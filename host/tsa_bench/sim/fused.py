@@ -140,15 +140,15 @@ def _length_expr(lines: list[str], out: str, length: str, turns: str, growth: bo
 def _missed_steps(s: _Snip, e: Any, p: str, E: str) -> None:
     s.params.append((f"{p}hold", f"{E}.params.holding_torque_Nm"))
     s.memory.append((f"{p}lost", "lost_turns"))
+    # F |dX/dtheta| <= F theta r0^2 L0 / X^2 <= 3 F theta r0^2 L0 / L^2 (radius growth; without it
+    # F theta r0^2 / X <= sqrt(3) F theta r0^2 / L) since X >= L / sqrt(3): when that bound, with a
+    # margin far above rounding, is within the holding torque, so is the torque the chain computes
     s.body += [f"want = turns_cmd - {p}lost",
-               "if want == tq_w and L == tq_L and rg is tq_rg:",
-               "    tq = tq_v",
+               f"if L > 0.0 and (abs(want) * tqb_rg <= {p}hold * L * L if rg else "
+               f"abs(want) * tqb_plain <= {p}hold * L):",
+               "    tq = 0.0",
                "else:",
                "    tq = torque(want)",
-               "    tq_w = want",
-               "    tq_L = L",
-               "    tq_rg = rg",
-               "    tq_v = tq",
                f"if tq > {p}hold:",
                "    lo = 0.0",
                "    hi = abs(want)",
@@ -372,11 +372,15 @@ def _resistance_hysteresis(s: _Snip, e: Any, p: str, E: str) -> None:
                f"    scale = {p}alpha * log({p}beta + {p}lam * {p}rate ** {p}eps)",
                f"    {p}mrate = {p}rate"]
     if unroll:
-        s.body += [f"    {r} = {p}unit[{i}] * scale" for i, r in enumerate(rs)]
-        s.body += [f"if not {p}init:", f"    {p}init = True"] + [f"    {w} = x" for w in ws]
-        s.body.append("total = 0.0")
+        s.body += [f"    {r} = {p}unit[{i}] * scale" for i, r in enumerate(rs)] + [f"    {p}hx = None"]
+        s.body += [f"if not {p}init:", f"    {p}init = True", f"    {p}hx = None"] + [f"    {w} = x" for w in ws]
+        # at the same length and thresholds as the last sample every operator is already within
+        # its band (it was clamped to it): nothing moves, the sum is the last one
+        s.body += [f"if x == {p}hx:", f"    total = {p}htotal", "else:"]
+        s.cells += [(f"{p}hx", "None"), (f"{p}htotal", "0.0")]
+        loop = ["total = 0.0"]
         for w, r in zip(ws, rs):
-            s.body += [f"lo = x - {r}",
+            loop += [f"lo = x - {r}",
                        f"if {w} < lo:",
                        f"    {w} = lo",
                        "else:",
@@ -384,6 +388,7 @@ def _resistance_hysteresis(s: _Snip, e: Any, p: str, E: str) -> None:
                        f"    if {w} > hi:",
                        f"        {w} = hi",
                        f"total += {w} - x"]
+        s.body += ["    " + line for line in loop] + [f"    {p}hx = x", f"    {p}htotal = total"]
     else:
         s.body += [f"    {p}rs = [u * scale for u in {p}unit]",
                    f"if {p}wl is None:",
@@ -547,7 +552,7 @@ def _source(plant: TsaPlant) -> tuple[str, list[_Snip]] | None:
     body += stages.get("length", []) + stages.get("resistance", [])
     body += ["if R < 0.0:", "    R = 0.0"] + stages.get("sensor", [])
 
-    cells = [c for c, _ in _PLANT_CELLS] + ["km_L", "km_te", "km_x", "tq_w", "tq_L", "tq_rg", "tq_v"]
+    cells = [c for c, _ in _PLANT_CELLS] + ["km_L", "km_te", "km_x"]
     for s in snips:
         cells += [v for v, _ in s.memory] + [v for v, _ in s.cells] + s.perload_vars
     nonlocal_line = "nonlocal " + ", ".join(cells)
@@ -556,7 +561,7 @@ def _source(plant: TsaPlant) -> tuple[str, list[_Snip]] | None:
            "    L0 = st.untwisted_length_mm", "    r0 = st.radius_mm", "    R0 = st.resistance0_ohm",
            "    amb = st.ambient_C"]
     src += [f"    {v} = {where}" for v, where in _PLANT_CELLS]
-    src += ["    km_L = km_te = km_x = None", "    tq_w = tq_L = tq_rg = tq_v = None"]
+    src += ["    km_L = km_te = km_x = None"]
     for s in snips:
         src += [f"    {v} = {expr}" for v, expr in s.params]
         src += [f"    {v} = {s.E}.{attr}" for v, attr in s.memory]
@@ -565,10 +570,13 @@ def _source(plant: TsaPlant) -> tuple[str, list[_Snip]] | None:
     perload = [line for s in snips for line in s.perload]
     perload_vars = [v for s in snips for v in s.perload_vars]
     src += ["    " + line for line in perload]
+    bound = ["tqb_rg = TWO_PI * load_N * r0 * r0 * L0 * 3.0 * 1e-3 * (1.0 + 1e-6)",
+             "tqb_plain = TWO_PI * load_N * r0 * r0 * SQRT3 * 1e-3 * (1.0 + 1e-6)"]
+    src += ["    " + line for line in bound]
     src += ["    def set_load(g, n):",
-            "        nonlocal " + ", ".join(["load_g", "load_N", "tq_w"] + perload_vars),
-            "        load_g = g", "        load_N = n", "        tq_w = None"]
-    src += ["        " + line for line in perload]
+            "        nonlocal " + ", ".join(["load_g", "load_N", "tqb_rg", "tqb_plain"] + perload_vars),
+            "        load_g = g", "        load_N = n"]
+    src += ["        " + line for line in bound + perload]
     torque = ["    def torque(tn):",
               "        theta = TWO_PI * abs(tn)",
               "        if theta == 0.0:",
