@@ -50,7 +50,8 @@ _UNROLL_OPERATORS = 32
 class Kernel(NamedTuple):
     """A fused plant: ``sample(t_s, turns, heater_V, moving) -> PlantReading``,
     ``block(ts, turns, volts, moving, out_length, out_resistance, out_temperature, out_turns)``
-    (appends to the lists; the last two may be None), ``set_load(load_g, load_N)``, ``export()``."""
+    (appends to the lists; the last two may be None; None when built without it),
+    ``set_load(load_g, load_N)``, ``export()``."""
 
     sample: Callable[..., PlantReading]
     block: Callable[..., None]
@@ -529,7 +530,7 @@ kf = 1.0
 hs = 1.0"""
 
 
-def _source(plant: TsaPlant) -> tuple[str, list[_Snip]] | None:
+def _source(plant: TsaPlant, block: bool = False) -> tuple[str, list[_Snip]] | None:
     """The factory's source for this plant's layout, or None if an effect cannot be fused."""
     snips: list[_Snip] = []
     stages: dict[str, list[str]] = {}
@@ -588,13 +589,16 @@ def _source(plant: TsaPlant) -> tuple[str, list[_Snip]] | None:
     src += ["    def sample(t_s, turns_cmd, volts, motor_moving):", "        " + nonlocal_line]
     src += ["        " + line for line in body]
     src += ["        return _make(PlantReading, (x, R))"]
-    src += ["    def block(ts, cmds, vs, ms, out_l, out_r, out_t, out_a):", "        " + nonlocal_line,
-            "        add_l = out_l.append", "        add_r = out_r.append",
-            "        for t_s, turns_cmd, volts, motor_moving in zip(ts, cmds, vs, ms):"]
-    src += ["            " + line for line in body]
-    src += ["            add_l(x)", "            add_r(R)",
-            "            if out_t is not None:", "                out_t.append(T)",
-            "            if out_a is not None:", "                out_a.append(turns)"]
+    if block:
+        src += ["    def block(ts, cmds, vs, ms, out_l, out_r, out_t, out_a):", "        " + nonlocal_line,
+                "        add_l = out_l.append", "        add_r = out_r.append",
+                "        for t_s, turns_cmd, volts, motor_moving in zip(ts, cmds, vs, ms):"]
+        src += ["            " + line for line in body]
+        src += ["            add_l(x)", "            add_r(R)",
+                "            if out_t is not None:", "                out_t.append(T)",
+                "            if out_a is not None:", "                out_a.append(turns)"]
+    else:
+        src += ["    block = None"]
     src += ["    def export():"]
     src += [f"        {where} = {v}" for v, where in _PLANT_CELLS]
     src += ["        if t_prev is not None:", "            st.t_s = t_prev", "            st.motor_moving = moving_prev"]
@@ -608,9 +612,10 @@ def _source(plant: TsaPlant) -> tuple[str, list[_Snip]] | None:
 _COMPILED: dict[str, Callable[..., tuple]] = {}
 
 
-def fuse(plant: TsaPlant) -> Kernel | None:
-    """The plant's fused kernel, started from its present state (module docstring), or None."""
-    made = _source(plant)
+def fuse(plant: TsaPlant, block: bool = False) -> Kernel | None:
+    """The plant's fused kernel, started from its present state (module docstring), or None.
+    Without ``block`` the kernel has no block loop (``Kernel.block`` None; half the code to compile)."""
+    made = _source(plant, block)
     if made is None:
         return None
     text, _ = made

@@ -42,6 +42,9 @@ from tsa_bench.sim.readings import PlantReading
 
 __all__ = ["Plant", "PlantReading", "TsaPlant", "plant_from_config", "PLANT_KEYS"]
 
+#: Single samples a plant takes through the effect chain before it compiles its fused kernel.
+CHAIN_SAMPLES = 16
+
 #: Keys accepted in a bench file's ``plant`` mapping.
 PLANT_KEYS = ("untwisted_length_mm", "radius_mm", "resistance_ohm", "ambient_C", "initial_load_g", "seed",
               "effects")
@@ -86,15 +89,22 @@ class TsaPlant:
         self._moving_prev = False
         self._fused = fused
         self._kernel: Kernel | None = None
+        self._warmup = CHAIN_SAMPLES
         self.load_g = 0.0
         self.set_load(load_g)
 
     # -- the fused kernel (tsa_bench.sim.fused) and the state it keeps -----
-    def _start(self) -> Kernel | None:
-        """The running kernel, built from the present state if none runs (None: run the chain)."""
+    def _start(self, block: bool = False) -> Kernel | None:
+        """The running kernel (with ``block``, one that has a block loop), built from the present
+        state if none runs; None: run the chain (the first :data:`CHAIN_SAMPLES` single samples
+        too, so that a plant sampled a few times only is not compiled)."""
         k = self._kernel
-        if k is None and self._fused:
-            k = fuse(self)
+        if (k is None or (block and k.block is None)) and self._fused:
+            if k is None and not block and self._warmup > 0:
+                self._warmup -= 1
+                return None
+            self._sync()
+            k = fuse(self, block)
             if k is None:
                 self._fused = False
                 return None
@@ -206,7 +216,7 @@ class TsaPlant:
         out_r: list[float] = []
         out_t: list[float] | None = [] if state else None
         out_a: list[float] | None = [] if state else None
-        k = self._start()
+        k = self._start(block=True)
         if k is not None:
             k.block(ts, cmds, vs, ms, out_l, out_r, out_t, out_a)
         else:
