@@ -23,8 +23,16 @@ file's ``plant`` mapping is::
 Omitted effects and parameters take the defaults documented on each effect class
 (``tsa-bench effects``; configs/bench/sim.yaml lists them all): an omitted effect is on,
 except the later additions marked ``default_enabled = False`` (twist_stiffening,
-thermal_actuation, length_settling, resistance_settling), which a bench file switches on. ``sample`` costs a few
-tens of microseconds with every effect on.
+thermal_actuation, length_settling, resistance_settling), which a bench file switches on.
+
+Speed: after its first :data:`CHAIN_SAMPLES` samples a plant of library effects runs a
+fused kernel (:mod:`tsa_bench.sim.fused`): the same operations in one generated function,
+bit-identical to the chain of ``apply`` calls (:meth:`TsaPlant.sample_chain`, the
+reference, which a plant with an effect the kernel does not know, or built with
+``fused=False``, always runs). About 3 us per sample with the shipped bench's effects
+(``python3 scripts/bench/sim_speed.py --plant-only``). :meth:`TsaPlant.sample_block`
+samples a whole input history in one call. Reading ``state`` or ``effects`` stops the
+kernel (it writes its state back); the next sample restarts it from there.
 """
 
 from __future__ import annotations
