@@ -12,11 +12,15 @@ form against the chain; each effect's part of the code is in
 while the kernel runs; ``Kernel.export`` writes it back to the plant's
 :class:`~tsa_bench.sim.effects.PlantState`, the effects' memory and the plant. An
 effect whose parameters make it a no-op (``twist_stiffening`` with ``per_turn`` 0,
-``thermal_softening`` with ``per_K`` 0, ``thermal_actuation`` with ``strain_per_K`` 0,
-sensor noise or quantisation of a channel at 0) emits no code; a settling effect
-without hold draws adds its constant offset. Quantities that change only with the load
-are computed in ``set_load``; a repeated kinematics or load-torque evaluation with the
-same inputs reuses the last result. The generated source depends on the plant's
+``thermal_softening`` with ``per_K`` 0, ``thermal_actuation`` or ``thermal_contraction``
+with ``strain_per_K`` 0, sensor noise or quantisation of a channel at 0) emits no code; a
+settling effect without hold draws adds its constant offset. Quantities that change only
+with the load are computed in ``set_load``; the missed-steps load torque is computed only
+when a bound on it (with a margin far above rounding) reaches the holding torque; a
+kinematics evaluation with the inputs of the last one, the play operators of the
+resistance hysteresis at the length and thresholds of the last sample (nothing moves) and
+an exponential decay factor at the last step and time constant reuse the last result.
+The generated source depends on the plant's
 layout (which effects, which no-ops), not on parameter values, and is compiled once
 per layout. Any other effect (a custom ``register_effect``) makes :func:`fuse` return
 None and the plant runs its chain.
