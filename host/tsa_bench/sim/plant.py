@@ -32,7 +32,8 @@ reference, which a plant with an effect the kernel does not know, or built with
 ``fused=False``, always runs). About 3 us per sample with the shipped bench's effects
 (``python3 scripts/bench/sim_speed.py --plant-only``). :meth:`TsaPlant.sample_block`
 samples a whole input history in one call. Reading ``state`` or ``effects`` stops the
-kernel (it writes its state back); the next sample restarts it from there.
+kernel (it writes its state back); the next sample restarts it from there, so a reference
+to ``state`` kept across samples goes stale: read ``plant.state`` after the sample.
 """
 
 from __future__ import annotations
