@@ -63,7 +63,7 @@ class Kernel(NamedTuple):
 #: the plant's own per-sample quantities (PlantState slot or plant attribute they export to)
 _PLANT_CELLS = (("t_prev", "plant._t_prev"), ("moving_prev", "plant._moving_prev"), ("dt", "st.dt_s"),
                 ("cmd_last", "st.turns_cmd"), ("volts_last", "st.heater_voltage_V"), ("turns", "st.turns"),
-                ("direction", "st.direction"), ("travel", "st.travel_turns"), ("since", "st.t_since_stop_s"),
+                ("travel", "st.travel_turns"), ("since", "st.t_since_stop_s"),
                 ("T", "st.temperature_C"), ("kf", "st.stiffness_factor"), ("hs", "st.hysteresis_scale"),
                 ("te", "st.turns_eff"), ("L", "st.string_length_mm"), ("rg", "st.radius_growth"),
                 ("X", "st.kinematic_length_mm"), ("contraction", "st.contraction"), ("x", "st.length_mm"),
@@ -83,8 +83,6 @@ prev_turns = turns
 turns = turns_cmd"""
 
 _BOOKKEEPING = """\
-d = abs(turns) - abs(prev_turns)
-direction = 1 if d > 0.0 else -1 if d < 0.0 else 0
 travel += abs(turns - prev_turns) if tp is not None else abs(turns)
 if moving or moving_prev:
     since = 0.0
@@ -121,7 +119,7 @@ def _source(plant: TsaPlant, block: bool = False) -> tuple[str, list[Snip]] | No
     body += stages.get("length", []) + stages.get("resistance", [])
     body += ["if R < 0.0:", "    R = 0.0"] + stages.get("sensor", [])
 
-    cells = [c for c, _ in _PLANT_CELLS] + ["km_L", "km_te", "km_x"]
+    cells = [c for c, _ in _PLANT_CELLS] + ["prev_turns", "km_L", "km_te", "km_x"]
     for s in snips:
         cells += [v for v, _ in s.memory] + [v for v, _ in s.cells] + s.perload_vars
     nonlocal_line = "nonlocal " + ", ".join(cells)
@@ -130,7 +128,8 @@ def _source(plant: TsaPlant, block: bool = False) -> tuple[str, list[Snip]] | No
            "    L0 = st.untwisted_length_mm", "    r0 = st.radius_mm", "    R0 = st.resistance0_ohm",
            "    amb = st.ambient_C"]
     src += [f"    {v} = {where}" for v, where in _PLANT_CELLS]
-    src += ["    km_L = km_te = km_x = None"]
+    src += ["    prev_turns = None  # the twist before the last sample: the direction is worked out on export",
+            "    km_L = km_te = km_x = None"]
     for s in snips:
         src += [f"    {v} = {expr}" for v, expr in s.params]
         src += [f"    {v} = {s.E}.{attr}" for v, attr in s.memory]
@@ -169,7 +168,10 @@ def _source(plant: TsaPlant, block: bool = False) -> tuple[str, list[Snip]] | No
         src += ["    block = None"]
     src += ["    def export():"]
     src += [f"        {where} = {v}" for v, where in _PLANT_CELLS]
-    src += ["        if t_prev is not None:", "            st.t_s = t_prev", "            st.motor_moving = moving_prev"]
+    src += ["        if t_prev is not None:", "            st.t_s = t_prev", "            st.motor_moving = moving_prev",
+            "        if prev_turns is not None:",
+            "            d = abs(turns) - abs(prev_turns)",
+            "            st.direction = 1 if d > 0.0 else -1 if d < 0.0 else 0"]
     for s in snips:
         src += [f"        {s.E}.{attr} = {v}" for v, attr in s.memory]
         src += ["        " + line for line in s.export_lines]
