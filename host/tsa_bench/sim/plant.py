@@ -90,10 +90,10 @@ class TsaPlant:
         self._post = tuple(stages.get("length", ())) + tuple(stages.get("resistance", ()))
         self._sensor = tuple(stages.get("sensor", ()))
         self._state = PlantState(untwisted_length_mm=untwisted_length_mm, radius_mm=radius_mm,
-                                resistance0_ohm=resistance_ohm, ambient_C=ambient_C,
-                                temperature_C=ambient_C, string_length_mm=untwisted_length_mm,
-                                kinematic_length_mm=untwisted_length_mm, length_mm=untwisted_length_mm,
-                                resistance_ohm=resistance_ohm)
+                                 resistance0_ohm=resistance_ohm, ambient_C=ambient_C,
+                                 temperature_C=ambient_C, string_length_mm=untwisted_length_mm,
+                                 kinematic_length_mm=untwisted_length_mm, length_mm=untwisted_length_mm,
+                                 resistance_ohm=resistance_ohm)
         self._t_prev: float | None = None
         self._moving_prev = False
         self._fused = fused
