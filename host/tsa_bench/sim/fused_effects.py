@@ -176,7 +176,8 @@ def _thermal_dynamics(s: Snip, e: Any, p: str, E: str) -> None:
     s.body += [f"if {p}t is None:",
                f"    {p}t = amb",
                f"t_ss = amb + (volts * volts / R0 * {p}rth if R0 > 0.0 else 0.0)",
-               "if dt > 0.0:",
+               # at its steady state (t_ss - t is a zero) a non-zero temperature stays as it is
+               f"if dt > 0.0 and (t_ss != {p}t or {p}t == 0.0):",
                f"    tau = {p}heat if t_ss > {p}t else {p}cool",
                f"    if dt != {p}mdt or tau != {p}mtau:",
                f"        {p}mf = 1.0 - exp(-dt / tau)",
