@@ -12,9 +12,11 @@ throughput in frames/s on a recorded-like stream of SAMPLE frames.
 
 ``--plant-only`` measures just the plant on a lifetime-like input (2-turn moves at 3.33
 turns/s between 15 and 25 turns, 1 s holds, 0.1 s sampling, 550 g, the shipped bench's
-effects): CPU s per call of ``sample`` in a fresh process, and of ``sample_block`` over
-the same inputs where the checkout has it; with ``--baseline`` the other checkout's
-plant is measured alternately with this one (side by side, same inputs).
+effects): CPU us per sample of ``sample`` in a fresh process, of ``sample_block`` over
+the same inputs where the checkout has it, and of ``tsa_bench.sim.history.simulate``
+(what fits and diagnose replays call); with ``--baseline`` the other checkout's plant is
+measured alternately with this one (side by side, same inputs), and the outputs' digests
+show whether both compute the same numbers.
 """
 
 from __future__ import annotations
@@ -86,14 +88,19 @@ while len(ts) < n:
         target += 2.0 if up else -2.0
     t += 0.1
 ts, cmds, moving = ts[:n], cmds[:n], moving[:n]
+import hashlib
+import numpy as np
+from tsa_bench.sim.history import simulate
 bench = load_bench(None)
 plant = plant_from_config(bench.plant, seed=1)
 plant.set_load(550.0)
 sample = plant.sample
+readings = []
 c0 = time.process_time()
 for a, b, m in zip(ts, cmds, moving):
-    sample(a, b, 0.0, m)
+    readings.append(sample(a, b, 0.0, m))
 single = time.process_time() - c0
+digest = hashlib.sha256(np.array(readings, dtype=float).tobytes()).hexdigest()[:12]
 block = float("nan")
 plant = plant_from_config(bench.plant, seed=1)
 plant.set_load(550.0)
@@ -101,25 +108,34 @@ if hasattr(plant, "sample_block"):
     c0 = time.process_time()
     plant.sample_block(ts, cmds, 0.0, moving)
     block = time.process_time() - c0
-print(single, block)
+c0 = time.process_time()
+out = simulate(bench.plant, np.array(ts), np.array(cmds), 0.0, 550.0, np.array(moving), seed=1)
+hist = time.process_time() - c0
+cols = np.column_stack([out[k] for k in ("length_mm", "resistance_ohm", "temperature_C", "turns_actual")])
+print(single, block, hist, digest, hashlib.sha256(cols.tobytes()).hexdigest()[:12])
 """
 
 
 def plant_side_by_side(checkouts: list[Path], repeat: int, n: int = 100_000) -> None:
     """CPU us per plant sample (``sample`` and ``sample_block``) of each checkout, alternately."""
-    got: dict[Path, list[tuple[float, float]]] = {c: [] for c in checkouts}
+    got: dict[Path, list[list[str]]] = {c: [] for c in checkouts}
     for _ in range(repeat):
         for c in checkouts:
             env = {**os.environ, "PYTHONPATH": str(c / "host")}
-            out = subprocess.run([sys.executable, "-c", PLANT_CHILD, str(n)], env=env, cwd=c, check=True,
-                                 capture_output=True, text=True).stdout.split()
-            got[c].append((float(out[0]), float(out[1])))
+            got[c].append(subprocess.run([sys.executable, "-c", PLANT_CHILD, str(n)], env=env, cwd=c, check=True,
+                                         capture_output=True, text=True).stdout.split())
+
+    def us(rows: list[list[str]], k: int) -> str:
+        v = sorted(float(r[k]) for r in rows)
+        return f"{v[0] / n * 1e6:5.2f} / {v[len(v) // 2] / n * 1e6:5.2f}"
+
     for c, rows in got.items():
-        single = sorted(r[0] for r in rows)
-        block = sorted(r[1] for r in rows)
-        print(f"plant  {str(c):40s} sample {single[0] / n * 1e6:5.2f} / {single[len(single) // 2] / n * 1e6:5.2f} "
-              f"us   sample_block {block[0] / n * 1e6:5.2f} / {block[len(block) // 2] / n * 1e6:5.2f} us "
-              f"(CPU, min / median of {repeat}, {n:,} samples)")
+        print(f"plant  {str(c):40s} sample {us(rows, 0)} us   sample_block {us(rows, 1)} us   "
+              f"history.simulate {us(rows, 2)} us   (CPU per sample, min / median of {repeat}, {n:,} samples; "
+              f"outputs sha256 {rows[0][3]} / {rows[0][4]})")
+    digests = {(r[3], r[4]) for rows in got.values() for r in rows}
+    print(f"plant  outputs {'identical in every checkout and run' if len(digests) == 1 else 'DIFFER'} "
+          "(the readings of sample; simulate's length, resistance, temperature and actual twist)")
 
 
 def codec_throughput(n: int = 200_000) -> float:
