@@ -41,13 +41,15 @@ from __future__ import annotations
 import copy
 import random
 from collections.abc import Mapping
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from tsa_bench.sim.effects import (EFFECTS, FORMS, Effect, PlantState, build_effect, canonical_order, check_keys,
                                    number_param, parse_effect_config, tsa_length_mm)
-from tsa_bench.sim.fused import Kernel, fuse
 from tsa_bench.sim.kinematics import NEWTON_PER_GRAM, TsaGeometry
 from tsa_bench.sim.readings import PlantReading
+
+if TYPE_CHECKING:  # the kernel's module is imported when a plant first fuses
+    from tsa_bench.sim.fused import Kernel
 
 __all__ = ["Plant", "PlantReading", "TsaPlant", "plant_from_config", "PLANT_KEYS"]
 
@@ -112,6 +114,8 @@ class TsaPlant:
             if k is None and not block and self._warmup > 0:
                 self._warmup -= 1
                 return None
+            from tsa_bench.sim.fused import fuse
+
             self._sync()
             k = fuse(self, block)
             if k is None:
