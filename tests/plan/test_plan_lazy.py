@@ -125,3 +125,15 @@ def test_empty_plan_and_out_of_range_index():
     assert len(plan.segments) == 1 and plan.segments[-1].kind == "hold"
     with pytest.raises(IndexError):
         plan.segments[1]
+
+
+def test_a_plan_that_fits_the_cache_is_walked_once():
+    plan = load_plan(PROTOCOL_DIR / "lifetime.yaml", BENCH)
+    segs = plan.segments
+    assert len(segs) <= model.CACHED_SEGMENTS
+
+    def no_second_walk(k):
+        raise AssertionError(f"span {k} expanded again")
+
+    segs._expand = no_second_walk
+    assert len(list(segs)) == len(segs) and segs[-1].kind == "heater" and plan.summary().cycles == 596

@@ -27,3 +27,29 @@ def test_plan_problems_names_what_does_not_fit_the_wire():
     problems = plan_problems(plan, 3200)
     assert len(problems) == 2 and problems[0].startswith("t.yaml:3: move") and "MoveTo" in problems[0]
     assert "SetHeater" in problems[1]
+
+
+def test_plan_problems_from_distinct_segments_equal_those_from_every_segment():
+    """The checking walk's first segment per distinct step and target gives exactly the
+    problems (and their order) of reading every segment."""
+    import dataclasses
+
+    free = Limits()
+    text = ("name: t\nload_g: 10\nsteps:\n"
+            "  - repeat:\n      count: 20\n      steps:\n"       # beyond the step range from cycle 6 on
+            "        - move_by: {turns: 1.0e5, rate_turns_per_s: 1, accel_turns_per_s2: 1}\n"
+            "        - hold: {duration_s: 1}\n"
+            "        - prompt: {text: hang it, load_g: 20}\n"
+            "        - heater: {voltage_V: 3}\n"
+            "  - repeat:\n      count: 3\n      steps:\n"
+            "        - heater: {voltage_V: 70}\n"
+            "        - move_by: {turns: 2.5e8, rate_turns_per_s: 1, accel_turns_per_s2: 1}\n"
+            "        - prompt: {text: again, load_g: 30}\n"
+            "  - move_to: {turns: 0, rate_turns_per_s: 1, accel_turns_per_s2: 1}\n")
+    plan = load_plan_text(text, free, "t.yaml")
+    assert plan.segments.distinct is not None and len(plan.segments.distinct) < len(plan.segments) / 2
+    every = dataclasses.replace(plan, segments=list(plan.segments))   # no distinct list: reads each segment
+    problems = plan_problems(plan, 3200)
+    assert problems == plan_problems(every, 3200)
+    assert [p.split(": ")[0] for p in problems] == ["t.yaml:7", "t.yaml:14", "t.yaml:15"]   # move, heater, move
+    assert "MoveTo" in problems[0] and "SetHeater" in problems[1] and "MoveTo" in problems[2]

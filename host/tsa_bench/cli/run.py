@@ -214,12 +214,23 @@ def _open(session: dict):
     return url, None
 
 
+def _progress_can_show() -> bool:
+    """Whether the live progress line may show: stderr is a terminal, or the environment says
+    to treat it as one (rich's own test decides then). Otherwise no display is made, so rich
+    is not imported for it."""
+    if os.environ.get("TTY_COMPATIBLE") is not None or os.environ.get("FORCE_COLOR") is not None:
+        return True
+    try:
+        return sys.stderr.isatty()
+    except ValueError:
+        return False
+
+
 def _execute_run(session: dict, interrupts) -> int:
     """Open the bench, run, summarise; return the exit code."""
     import serial
 
     from tsa_bench import transport  # noqa: F401  (registers the sim:// URL handler)
-    from tsa_bench.console.progress import ProgressDisplay
     from tsa_bench.console.summary import format_run_info
     from tsa_bench.device import BenchClient, DeviceError
     from tsa_bench.protocol import msg
@@ -271,7 +282,11 @@ def _execute_run(session: dict, interrupts) -> int:
                 from tsa_bench.simavr.operator import PlantOperator
                 operator = PlantOperator(fil)
                 operator.apply_initial(plan.load_g if resume is None else resume.load_g)
-        consumers = [writer, LiveSidecar(path), ProgressDisplay()]  # sidecar after the writer: tsa-bench watch
+        consumers = [writer, LiveSidecar(path)]  # sidecar after the writer: tsa-bench watch
+        if _progress_can_show():
+            from tsa_bench.console.progress import ProgressDisplay
+
+            consumers.append(ProgressDisplay())
         runner = Runner(client, plan, bench, consumers, operator, backend=backend, port_name=url,
                         interrupts=interrupts, resume=resume, metadata=session["meta"])
         stop = runner.run()

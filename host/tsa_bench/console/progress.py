@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import math
 import time
-
-from rich.console import Console
-from rich.live import Live
-from rich.text import Text
-
-from tsa_bench.console.output import make_console
+from typing import TYPE_CHECKING
 
 from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+
+if TYPE_CHECKING:  # rich is imported where a display is made (hms alone needs none)
+    from rich.console import Console
+    from rich.live import Live
+    from rich.text import Text
 
 
 def hms(seconds: float) -> str:
@@ -31,6 +31,8 @@ class ProgressDisplay:
     """Rich live line; see the module contract."""
 
     def __init__(self, console: Console | None = None) -> None:
+        from tsa_bench.console.output import make_console
+
         self.console = console or make_console(stderr=True)
         self.enabled = self.console.is_terminal
         self._live: Live | None = None
@@ -48,6 +50,8 @@ class ProgressDisplay:
         self._wall0 = time.monotonic()
 
     def __rich__(self) -> Text:
+        from rich.text import Text
+
         frac = self.done / self.n_segments if self.n_segments else 0.0
         bar_len = 24
         filled = int(frac * bar_len)
@@ -68,6 +72,8 @@ class ProgressDisplay:
         self.estimate = start.estimated_duration_s
         self._wall0 = time.monotonic()
         if self.enabled:
+            from rich.live import Live
+
             self._live = Live(self, console=self.console, refresh_per_second=4, transient=True)
             self._live.start()
 
@@ -95,6 +101,8 @@ class ProgressDisplay:
         if e.kind in ("prompt", "sample_gap", "fault", "queue_underrun", "stop_sent"):
             self.notes += 1
             if self._live is not None:
+                from rich.text import Text
+
                 # a Text, not markup: a prompt or a reason may hold "[" and "]"
                 self._live.console.print(Text(f"{hms(e.t)} {e.kind}: {e.detail}", style="yellow"))
 

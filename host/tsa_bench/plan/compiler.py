@@ -10,20 +10,27 @@ Memory: :func:`compile_ops` walks the whole expansion once (every segment is che
 none is kept) and returns :class:`~tsa_bench.plan.model.Segments`, a sequence that
 expands ``repeat`` and ``for_each`` blocks again on demand, from checkpoints of the walk
 taken every :data:`CHECKPOINT_SEGMENTS` segments, keeping only a bounded number of
-expanded segments. The walk of a checkpoint onwards is the same code as the checking
-walk, so the segments read later are exactly those that were checked.
+expanded segments (the first spans of the checking walk itself, so a plan that fits the
+cache is expanded once). The walk of a checkpoint onwards is the same code as the checking
+walk, so the segments read later are exactly those that were checked. The checking walk
+also lists the first segment of every distinct step and target (a step in a repeat gives
+the same segment in every cycle, up to its index and cycle) and every prompt
+(:attr:`Segments.distinct`, :attr:`Segments.prompts`; None beyond :data:`MAX_DISTINCT`),
+so that checks of a segment's action need not read every segment.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from yaml import Node
 
-from tsa_bench.plan.actions import Move, Segment, TrackLength
+from tsa_bench.plan.actions import Move, Prompt, Segment, TrackLength
 from tsa_bench.plan.errors import ErrorSink
 from tsa_bench.plan.limits import Limits
+from tsa_bench.plan import model
 from tsa_bench.plan.model import Segments
 from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
 
@@ -31,6 +38,8 @@ from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, R
 MAX_SEGMENTS = 1_000_000
 #: Segments between two checkpoints of the expansion (also the unit expanded on demand).
 CHECKPOINT_SEGMENTS = 1024
+#: Most distinct segments (or prompts) the checking walk lists for :attr:`Segments.distinct`.
+MAX_DISTINCT = 4096
 
 _TARGET_DECIMALS = 9
 
@@ -77,6 +86,9 @@ class _Walker:
         frames, self.position_turns, self.tracked_at, self.index = start
         self.stack = [list(fr) for fr in frames]   # None position: unknown after an invalid motion step
         self.violations: dict[int, _TwistViolation] = {}
+        # checking walk: the first segment of every distinct (step, target) and every prompt, in order
+        self.firsts: dict[Any, Segment] | None = {} if sink is not None else None
+        self.prompts: list[Segment] | None = [] if sink is not None else None
 
     @classmethod
     def at_start(cls, ops: Sequence[Op], limits: Limits, sink: ErrorSink | None) -> _Walker:
@@ -106,16 +118,27 @@ class _Walker:
             op = ops[i]
             kind = type(op)
             if kind is ActionOp:
-                if isinstance(op.action, TrackLength):  # the twist it ends at is decided while running
+                action = op.action
+                if isinstance(action, TrackLength):  # the twist it ends at is decided while running
                     self.position_turns, self.tracked_at = None, op.source
-                return self._segment(op.action, frame[2], op.source)
+                seg = self._segment(action, frame[2], op.source)
+                if self.firsts is not None:
+                    self._note(id(op), seg)
+                    if isinstance(action, Prompt) and self.prompts is not None:
+                        self.prompts.append(seg)
+                        if len(self.prompts) > MAX_DISTINCT:
+                            self.prompts = None
+                return seg
             if kind is MoveOp:
                 target = self._target(op)
                 if target is None:
                     continue
+                seg = self._segment(Move(target, op.rate_turns_per_s, op.accel_turns_per_s2), frame[2], op.source)
                 if self.sink is not None:
                     self._check_twist(op, target)
-                return self._segment(Move(target, op.rate_turns_per_s, op.accel_turns_per_s2), frame[2], op.source)
+                    if self.firsts is not None:
+                        self._note((id(op), target), seg)
+                return seg
             if kind is RepeatOp:
                 stack.append([op.body, 0, 0, op, 0])
             elif kind is ForEachOp:
@@ -126,6 +149,13 @@ class _Walker:
             else:
                 raise TypeError(f"the compiler does not know the operation {op!r}")
         return None
+
+    def _note(self, key: Any, seg: Segment) -> None:
+        firsts = self.firsts
+        if firsts is not None and key not in firsts:
+            firsts[key] = seg
+            if len(firsts) > MAX_DISTINCT:
+                self.firsts = None
 
     def _segment(self, action, cycle: int | None, source: str) -> Segment:
         seg = Segment(self.index, action, cycle, source)
@@ -209,11 +239,27 @@ def compile_ops(ops: Sequence[Op], limits: Limits, sink: ErrorSink, steps_node: 
     walker = _Walker.at_start(ops, limits, sink)
     checkpoints: list[Checkpoint] = []
     step = walker.next
+    # the first spans walked here are kept (as many as Segments caches), so that a plan that
+    # fits the cache is never expanded twice
+    keep = max(1, model.CACHED_SEGMENTS // CHECKPOINT_SEGMENTS)
+    spans: list[list[Segment]] = []
+    span: list[Segment] | None = None
     while True:
         if walker.index % CHECKPOINT_SEGMENTS == 0:
             checkpoints.append(walker.checkpoint())
-        if step() is None:
+            span = None
+            if len(spans) < keep:
+                span = []
+                spans.append(span)
+        seg = step()
+        if seg is None:
             break
+        if span is not None:
+            span.append(seg)
     walker.report()
-    return Segments(walker.index, CHECKPOINT_SEGMENTS, _Expansion(limits, checkpoints).span)
+    firsts = tuple(walker.firsts.values()) if walker.firsts is not None else None
+    prompts = tuple(walker.prompts) if walker.prompts is not None else None
+    return Segments(walker.index, CHECKPOINT_SEGMENTS, _Expansion(limits, checkpoints).span,
+                    walked=[sp for sp in spans if sp], distinct=firsts if prompts is not None else None,
+                    prompts=prompts if firsts is not None else None)
 

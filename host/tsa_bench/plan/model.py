@@ -31,13 +31,23 @@ class Segments(Sequence[Segment]):
     every segment; only the spans of ``span_size`` segments last used are kept (at most
     :data:`CACHED_SEGMENTS` segments), so memory does not grow with the plan's length.
     Reading in order, as the runner does, expands each span once. ``expand(k)`` gives the
-    segments of span ``k`` (built by :func:`tsa_bench.plan.compiler.compile_ops`).
+    segments of span ``k`` (built by :func:`tsa_bench.plan.compiler.compile_ops`); ``walked``
+    are spans 0, 1, ... already expanded, kept in the cache.
     """
 
-    def __init__(self, count: int, span_size: int, expand: Callable[[int], list[Segment]]) -> None:
+    def __init__(self, count: int, span_size: int, expand: Callable[[int], list[Segment]],
+                 walked: Sequence[list[Segment]] = (), distinct: tuple[Segment, ...] | None = None,
+                 prompts: tuple[Segment, ...] | None = None) -> None:
         self._n, self._size, self._expand = count, span_size, expand
         self._cache: OrderedDict[int, list[Segment]] = OrderedDict()
         self._keep = max(1, CACHED_SEGMENTS // span_size)
+        for k, span in enumerate(walked[:self._keep]):   # spans already expanded (by the compiler's walk)
+            self._cache[k] = span
+        #: the first segment of every distinct step and target, in plan order (a segment not listed
+        #: repeats a listed one's action and source); None: not known (read every segment)
+        self.distinct = distinct
+        #: every prompt segment in plan order; None: not known
+        self.prompts = prompts
 
     @classmethod
     def empty(cls) -> Segments:

@@ -69,14 +69,22 @@ def plan_problems(plan: Plan, steps_per_turn: int) -> list[str]:
     def where(source: str) -> str:  # "file.yaml:LINE" -> the path the user gave
         return str(folder / source) if folder is not None else source
 
+    segments = plan.segments
+    # a segment whose step and target came earlier has that segment's commands up to the
+    # wire segment index, which always fits: checking the first of each is checking all
+    distinct = getattr(segments, "distinct", None)
+    prompts = getattr(segments, "prompts", None)
+    if distinct is None or prompts is None:
+        distinct = segments
+        prompts = [s for s in segments if isinstance(s.action, Prompt)]
     loads = [(plan.load_g, where(f"{Path(plan.path).name}:1") if plan.path else "load_g")] + [
-        (s.action.load_g, where(s.source)) for s in plan.segments if isinstance(s.action, Prompt)]
+        (s.action.load_g, where(s.source)) for s in prompts]
     for load_g, at in loads:
         if load_g is not None and load_mg(load_g) > MAX_LOAD_MG:
             problems.append(f"{at}: load_g {load_g:g} g is more than the {MAX_LOAD_MG / 1000:g} g "
                             "a bench command can carry")
     seen: set[tuple[str, str]] = set()
-    for seg in plan.segments:
+    for seg in distinct:
         for command in device_commands(seg, steps_per_turn):
             try:
                 encode(command, 0)

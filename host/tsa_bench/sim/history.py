@@ -42,22 +42,14 @@ def simulate(plant_cfg_or_plant: Mapping[str, Any] | TsaPlant, t_s: np.ndarray, 
             moving[1:] = np.diff(tw) != 0
     else:
         moving = np.broadcast_to(np.asarray(motor_moving, dtype=bool), (n,))
-    out_l = np.empty(n)
-    out_r = np.empty(n)
-    out_t = np.empty(n)
-    out_a = np.empty(n)
-    state = plant.state
-    sample = plant.sample
-    current_load = None
-    for i, (ti, ni, vi, li, mi) in enumerate(zip(t.tolist(), tw.tolist(), volts.tolist(), loads.tolist(),
-                                                moving.tolist())):
-        if li != current_load:
-            plant.set_load(li)
-            current_load = li
-        reading = sample(ti, ni, vi, mi)
-        out_l[i] = reading.length_mm
-        out_r[i] = reading.resistance_ohm
-        out_t[i] = state.temperature_C
-        out_a[i] = state.turns
-    return {"t_s": t.copy(), "length_mm": out_l, "resistance_ohm": out_r, "temperature_C": out_t,
-            "turns_actual": out_a}
+    out: dict[str, list[np.ndarray]] = {"length_mm": [], "resistance_ohm": [], "temperature_C": [],
+                                        "turns_actual": []}
+    # one block per run of constant load (the load changes only through set_load)
+    starts = [0] + (np.flatnonzero(loads[1:] != loads[:-1]) + 1).tolist() if n else []
+    for a, b in zip(starts, starts[1:] + [n]):
+        plant.set_load(float(loads[a]))
+        block = plant.sample_block(t[a:b], tw[a:b], volts[a:b], moving[a:b], state=True)
+        for key in out:
+            out[key].append(block[key])
+    cols = {key: np.concatenate(parts) if parts else np.empty(0) for key, parts in out.items()}
+    return {"t_s": t.copy(), **cols}

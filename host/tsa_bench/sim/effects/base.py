@@ -16,6 +16,13 @@ bench file does not name it; True except for effects added after the presets, wh
 bench file must switch on) and a ``Params`` dataclass whose fields carry
 ``metadata={"units": ..., "doc": ...}``; :func:`build_effect`
 validates a config mapping against it and raises ``ValueError`` naming bad keys.
+
+Every library effect and form also has a fused form in :mod:`tsa_bench.sim.fused` (the
+same operations on the plant's locals, so a plant runs without a call per effect); its
+``apply`` stays the reference the fused form must equal bit for bit
+(``tests/sim/test_sim_fused.py`` runs every effect and form both ways). An effect without
+a fused form (one registered by a user or a test) still works: its plant runs the chain of
+``apply`` calls.
 """
 
 from __future__ import annotations
