@@ -36,7 +36,8 @@ from tsa_bench.models.creep import creep_operators
 from tsa_bench.models.long_run_fits import batched_hold_estimates, forward_difference_jacobian
 from tsa_bench.models.prandtl_ishlinskii import inverse_parameters
 from tsa_bench.models.steps import RunSeries, step_sequence
-from tsa_bench.models.strain_resistance import LONG_RUN_HOLDS, StrainResistanceModel
+from tsa_bench.models import strain_resistance
+from tsa_bench.models.strain_resistance import StrainResistanceModel
 
 ENVELOPE_NAMES = ("rho0_ohm", "rho1_per_ohm", "rho2", "rho3_ohm", "phi0_ohm", "phi1_per_ohm", "phi2", "phi3_ohm")
 
@@ -210,7 +211,7 @@ class SelfSensingModel:
             return (est - targets)[ok]
 
         x0 = np.array(start + start)
-        if long_form if long_form is not None else sum(len(s.curves) for s in seqs) > LONG_RUN_HOLDS:
+        if long_form if long_form is not None else sum(len(s.curves) for s in seqs) > strain_resistance.LONG_RUN_HOLDS:
             probe_cache = cls(forward, start, start)
             object.__setattr__(probe_cache, "_cache", shared)
 

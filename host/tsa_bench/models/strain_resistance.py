@@ -49,7 +49,7 @@ STARTS = ((1.0, 1.0, 1.0, 1.0, 1.0, 1.0), (0.5, 1.5, 1.0, 1.0, 0.01, 0.5), (2.0,
 #: Above this many holds (all training runs together) step (3) and the self-sensing envelopes
 #: use the long-run forms (:mod:`~tsa_bench.models.long_run_fits`: analytic gradient, time
 #: linear in holds); at or below it, the direct forms the thesis comparisons were made with.
-LONG_RUN_HOLDS = 1000
+LONG_RUN_HOLDS = 500
 
 
 @dataclass(frozen=True)
