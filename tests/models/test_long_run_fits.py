@@ -138,9 +138,12 @@ def test_long_and_direct_identifications_agree_on_a_generated_run(run):
 
 
 def test_the_long_form_is_chosen_above_the_hold_threshold(run, monkeypatch):
-    forced = srm.StrainResistanceModel.identify([run], n_hysteresis=20, long_form=True)
+    def fit(long_form=None):
+        return srm.StrainResistanceModel.identify([run], n_hysteresis=20, starts=srm.STARTS[:1], long_form=long_form)
+
+    forced_long, forced_direct = fit(True), fit(False)
+    assert forced_long != forced_direct
     monkeypatch.setattr(srm, "LONG_RUN_HOLDS", len(step_sequence(run).curves) - 1)
-    assert srm.StrainResistanceModel.identify([run], n_hysteresis=20) == forced
+    assert fit() == forced_long
     monkeypatch.setattr(srm, "LONG_RUN_HOLDS", len(step_sequence(run).curves))
-    assert srm.StrainResistanceModel.identify([run], n_hysteresis=20) == srm.StrainResistanceModel.identify(
-        [run], n_hysteresis=20, long_form=False)
+    assert fit() == forced_direct

@@ -22,7 +22,9 @@ before the first motion is the length whose steady model resistance equals the
 median resistance measured there. The eight envelope parameters are identified by
 bounded least squares (scipy) on the training runs' hold-mean lengths (step 6 of the
 thesis's procedure), starting from envelopes that are the identity to 1e-4 over the
-training range. NaN while the motor turns and before the first stop.
+training range (above ``LONG_RUN_HOLDS`` holds the two-point Jacobian is computed in one
+batched pass, :mod:`~tsa_bench.models.long_run_fits`). NaN while the motor turns and before
+the first stop.
 """
 
 from __future__ import annotations

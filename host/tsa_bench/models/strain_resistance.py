@@ -21,7 +21,9 @@ steady value ``y_s`` per curve, (3) fit the hysteresis and creep to the ``y_s``
 sequence by bounded optimisation of eq. 3.19 (scipy L-BFGS-B over alpha, beta,
 lambda, eps, Lambda_1, Lambda_2 from several starts, the linear parameters solved
 inside by bounded least squares), (4) ``y_model = y_s,model + y_t`` (eq. 3.20). Samples
-while the motor turns and before the first stop are not modelled (NaN).
+while the motor turns and before the first stop are not modelled (NaN). Above
+:data:`LONG_RUN_HOLDS` holds step (3) uses the analytic gradient of the same objective
+(:class:`~tsa_bench.models.long_run_fits.LongSteadyProblem`) instead of finite differences.
 """
 
 from __future__ import annotations
