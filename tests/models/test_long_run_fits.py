@@ -109,7 +109,7 @@ def test_batched_self_sensing_estimates_equal_the_inverse_one_at_a_time(run):
     step = x.copy()
     step[3] += h
     col = (batched_hold_estimates(probe, run, step[None, :4], step[None, 4:], v0)[0] - batch[0]) / ((x[3] + h) - x[3])
-    assert np.allclose(jac[:, 3], col, rtol=1e-6, atol=1e-9)
+    assert np.allclose(jac[:, 3], col, rtol=1e-5, atol=1e-6 * np.max(np.abs(col)))  # rounding / h
 
 
 def test_long_and_direct_identifications_agree_on_a_generated_run(run):

@@ -33,7 +33,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.linalg import qr
 from scipy.optimize import lsq_linear
 
 from tsa_bench.models.steps import StepSequence
@@ -46,17 +45,18 @@ def play_and_clips(v: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray
     lo = v[:, None] - r
     hi = v[:, None] + r
     out = np.empty_like(lo)
-    w = np.zeros(r.shape[1])
-    for k in range(len(v)):
-        np.minimum(hi[k], w, out=w)
-        np.maximum(lo[k], w, out=w)
-        out[k] = w
-    at_lo = out == lo
-    clipped = at_lo | (out == hi)
-    rows = np.arange(len(v))[:, None]
-    last = np.maximum.accumulate(np.where(clipped, rows, -1), axis=0)
-    sign = np.where(at_lo, -1.0, 1.0)
-    last_sign = np.where(last >= 0, np.take_along_axis(sign, np.maximum(last, 0), axis=0), 0.0)
+    prev = np.zeros(r.shape[1])
+    lower, upper = np.maximum, np.minimum
+    for lo_k, hi_k, out_k in zip(lo, hi, out):   # the one sequential pass: two ufunc calls a hold
+        upper(hi_k, prev, out=out_k)
+        lower(lo_k, out_k, out=out_k)
+        prev = out_k
+    # event code 2k (lower clip) or 2k + 1 (upper clip) grows with k: its running maximum is the last clip
+    code = np.where(out == lo, 0, np.where(out == hi, 1, -1 - 2 * len(v)))
+    code += 2 * np.arange(len(v))[:, None]
+    np.maximum.accumulate(code, axis=0, out=code)
+    last = np.where(code >= 0, code >> 1, -1)
+    last_sign = np.where(code >= 0, 2.0 * (code & 1) - 1.0, 0.0)
     return out, last, last_sign
 
 
@@ -117,16 +117,23 @@ class LongSteadyProblem:
         return parts
 
     def _design(self, parts: list[dict[str, Any]]) -> np.ndarray:
-        blocks = [np.hstack([self.sign * p["f"][1:], p["c"][1:], np.ones((len(p["f"]) - 1, 1))]) for p in parts]
-        return np.vstack(blocks)[self.ok]
+        nh = self.nh
+        a = np.empty((len(self.y), nh + 3))
+        pos = 0
+        for p in parts:
+            m = len(p["f"]) - 1
+            np.multiply(p["f"][1:], self.sign, out=a[pos:pos + m, :nh])
+            a[pos:pos + m, nh:nh + 2] = p["c"][1:]
+            pos += m
+        a[:, -1] = 1.0
+        return a if self.ok.all() else a[self.ok]
 
     def _solve(self, a: np.ndarray) -> np.ndarray:
-        """Bounded least squares of ``[a; ridge] lin = [y; 0]`` on the R factor of ``a``."""
-        y = self.y[self.ok]
-        q, r = qr(a, mode="economic", check_finite=False)
-        qty = q.T @ y
-        aa = np.vstack([r, np.diag(self.ridge)[:-1]])
-        bb = np.r_[qty, np.zeros(len(self.ridge) - 1)]
+        """Bounded least squares of ``[a; ridge] lin = [y; 0]`` on the R factor of ``[a, y]``."""
+        r = np.linalg.qr(np.hstack([a, self.y[self.ok][:, None]]), mode="r")
+        p = a.shape[1]
+        aa = np.vstack([np.triu(r[:p, :p]), np.diag(self.ridge)[:-1]])
+        bb = np.r_[r[:p, p], np.zeros(len(self.ridge) - 1)]
         return lsq_linear(aa, bb, bounds=(self.lo, np.full(len(self.lo), np.inf)), method="bvls").x
 
     def linear(self, x: np.ndarray) -> np.ndarray:
