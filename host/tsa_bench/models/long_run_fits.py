@@ -168,7 +168,8 @@ def batched_hold_estimates(model: Any, run: Any, rho: np.ndarray, phi: np.ndarra
                            initial_length_mm: float) -> np.ndarray:
     """Per-hold final length estimates (Q, m) of the self-sensing inverse for Q envelope
     parameter vectors ``rho``, ``phi`` (Q, 4) at once (``SelfSensingModel.estimate`` with
-    ``per_sample=False``, the same recursion, vectorised over the batch)."""
+    ``per_sample=False``: the same recursion, vectorised over the batch, with what does not
+    depend on the envelopes computed once: creep decay factors, the first pass's zero rate)."""
     from tsa_bench.models.prandtl_ishlinskii import inverse_parameters
 
     f = model.forward
@@ -177,52 +178,76 @@ def batched_hold_estimates(model: Any, run: Any, rho: np.ndarray, phi: np.ndarra
     dens = np.asarray(f.creep_densities_ohm_per_mm)
     lam = np.asarray(f.creep_rates_per_s)
     nh = len(p)
-    unit = np.arange(nh) / max(nh - 1, 1)
-    rbar_unit, pbar = inverse_parameters(unit, p)   # rbar is linear in the threshold scale
-    rbar1, pbar0, pbar1 = rbar_unit[1:], pbar[0], pbar[1:]
+    rbar_unit, pbar = inverse_parameters(np.arange(nh) / max(nh - 1, 1), p)   # rbar is linear in the scale
+    rbar1, pbar0, pbar1 = rbar_unit[1:], float(pbar[0]), pbar[1:]
+    rbar0 = inverse_parameters(f.thresholds(np.array([0.0]))[0], p)[0]
+    alpha, beta, lmb, eps = f.alpha_mm, f.beta, f.lam, f.epsilon
+    rb_still = max(alpha * np.log(beta), 0.0) * rbar1   # the first pass: rate 0
+    # per hold, independent of the envelopes: time since the last hold with data, creep decay
+    m = len(seq.curves)
+    has = np.array([z is not None for z in zs])
+    zlast = np.array([float(z[-1]) if z is not None else np.nan for z in zs])
+    t0 = np.array([c.t0_s for c in seq.curves])
+    prev_t = np.r_[seq.t0_s[0], t0][np.maximum.accumulate(np.where(np.r_[True, has], np.arange(m + 1), 0))][:m]
+    dts = t0 - prev_t
+    decay = np.exp(-np.outer(dts, lam))
     q = len(rho)
-    r0 = f.thresholds(np.array([0.0]))[0]
-    rbar0 = inverse_parameters(r0, p)[0]
+    k0, k1, k2, k3 = (rho[:, i].copy() for i in range(4))
+    h0, h1, h2, h3 = (phi[:, i].copy() for i in range(4))
     v_prev = np.full(q, float(initial_length_mm))
     u_prev = np.full(q, model._loading(float(initial_length_mm)))
-    k0, k1, k2, k3 = (rho[:, i:i + 1] for i in range(4))
-    h0, h1, h2, h3 = (phi[:, i:i + 1] for i in range(4))
-    state = np.maximum(k0 * np.tanh(k1 * u_prev[:, None] + k2) + k3 - rbar0[None, :], 0.0)[:, 1:]
+    state = np.maximum((k0 * np.tanh(k1 * u_prev + k2) + k3)[:, None] - rbar0[None, :], 0.0)[:, 1:]
     x = np.full((q, len(lam)), float(initial_length_mm))
-    t_prev = seq.t0_s[0]
-    finals = np.empty((q, len(seq.curves)))
-    alpha, beta, lmb, eps = f.alpha_mm, f.beta, f.lam, f.epsilon
-    k0, k1, k2, k3, h0, h1, h2, h3 = (a[:, 0] for a in (k0, k1, k2, k3, h0, h1, h2, h3))
-    for k, c in enumerate(seq.curves):
-        dt = c.t0_s - t_prev
-        d = np.exp(-lam * dt)
+    finals = np.empty((q, m))
+    inf = np.inf
+    for k in range(m):
+        d = decay[k]
         x = d * x + (1.0 - d) * v_prev[:, None]
-        z = zs[k]
-        if z is None:
+        if not has[k]:
             finals[:, k] = v_prev
             continue
-        u = f.sign * (float(z[-1]) - f.offset_ohm - x @ dens)
-        up_env = (k0 * np.tanh(k1 * u + k2) + k3)[:, None]
-        down_env = (h0 * np.tanh(h1 * u + h2) + h3)[:, None]
-        rising, falling = (u > u_prev)[:, None], (u < u_prev)[:, None]
-        v_est = v_prev
-        for _ in range(2):
-            rate = np.abs(v_est - v_prev) / max(dt, 1e-9)
-            scale = np.maximum(alpha * np.log(beta + lmb * rate ** eps), 0.0)[:, None]
-            rb = scale * rbar1[None, :]
-            new = np.where(rising, np.maximum(up_env - rb, state),
-                           np.where(falling, np.minimum(down_env + rb, state), state))
-            v_est = pbar0 * u + new @ pbar1
+        u = f.sign * (zlast[k] - f.offset_ohm - x @ dens)
+        # rising: F = max(o1(u) - rbar, F); falling: F = min(o2(u) + rbar, F); else F kept
+        up = np.where(u > u_prev, k0 * np.tanh(k1 * u + k2) + k3, -inf)[:, None]
+        down = np.where(u < u_prev, h0 * np.tanh(h1 * u + h2) + h3, inf)[:, None]
+        new = np.minimum(np.maximum(up - rb_still, state), down + rb_still)
+        v_est = pbar0 * u + new @ pbar1
+        rate = np.abs(v_est - v_prev) / max(dts[k], 1e-9)
+        rb = np.maximum(alpha * np.log(beta + lmb * rate ** eps), 0.0)[:, None] * rbar1
+        new = np.minimum(np.maximum(up - rb, state), down + rb)
+        v_est = pbar0 * u + new @ pbar1
         finals[:, k] = v_est
-        state, u_prev, v_prev, t_prev = new, u, v_est, c.t0_s
+        state, u_prev, v_prev = new, u, v_est
     return finals
 
 
+class BatchedResiduals:
+    """Residuals and their two-point Jacobian (scipy's ``2-point`` steps, ``sqrt(eps)
+    max(1, |x|)`` signed like x) from one batched call of ``residuals_batch`` ((Q, n) ->
+    (Q, m)): every residual evaluation computes the Jacobian's columns too, so the Jacobian
+    scipy asks for next at the same point costs nothing more."""
+
+    def __init__(self, residuals_batch) -> None:
+        self.batch = residuals_batch
+        self.x: np.ndarray | None = None
+
+    def _at(self, x: np.ndarray) -> None:
+        if self.x is not None and np.array_equal(x, self.x):
+            return
+        h = np.sqrt(np.finfo(float).eps) * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        h = (x + h) - x
+        r = self.batch(np.vstack([x, x + np.diag(h)]))
+        self.x, self.r, self.j = x.copy(), r[0], ((r[1:] - r[0]) / h[:, None]).T
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        self._at(x)
+        return self.r
+
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        self._at(x)
+        return self.j
+
+
 def forward_difference_jacobian(residuals_batch, x: np.ndarray) -> np.ndarray:
-    """Two-point Jacobian of ``residuals_batch`` ((Q, n) -> (Q, m)) at ``x`` with scipy's
-    ``2-point`` steps (``sqrt(eps) max(1, |x|)``, signed like x), from one batched call."""
-    h = np.sqrt(np.finfo(float).eps) * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
-    h = (x + h) - x
-    xs = np.vstack([x, x + np.diag(h)])
-    r = residuals_batch(xs)
-    return ((r[1:] - r[0]) / h[:, None]).T
+    """The two-point Jacobian of :class:`BatchedResiduals` at ``x``."""
+    return BatchedResiduals(residuals_batch).jac(x)

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from tsa_bench.models.creep import creep_operators
-from tsa_bench.models.long_run_fits import batched_hold_estimates, forward_difference_jacobian
+from tsa_bench.models.long_run_fits import BatchedResiduals, batched_hold_estimates
 from tsa_bench.models.prandtl_ishlinskii import inverse_parameters
 from tsa_bench.models.steps import RunSeries, step_sequence
 from tsa_bench.models import strain_resistance
@@ -222,9 +222,9 @@ class SelfSensingModel:
                                  for r, v in zip(runs, v0)])
                 return (est - targets)[:, ok]
 
-            r0 = batch(x0[None, :])[0]
-            res = least_squares(lambda q: batch(q[None, :])[0], x0, jac=lambda q: forward_difference_jacobian(batch, q),
-                                x_scale="jac", max_nfev=max_evaluations)
+            both = BatchedResiduals(batch)
+            r0 = both.fun(x0)
+            res = least_squares(both.fun, x0, jac=both.jac, x_scale="jac", max_nfev=max_evaluations)
         else:
             r0 = residuals(x0)
             res = least_squares(residuals, x0, x_scale="jac", max_nfev=max_evaluations)
