@@ -38,6 +38,16 @@ from scipy.optimize import lsq_linear
 from tsa_bench.models.steps import StepSequence
 
 
+def one_blas_thread() -> Any:
+    """Context in which BLAS runs on one thread: the long forms' QR and products of a tall,
+    64-column design gain nothing from threads, and on a shared machine BLAS threads waiting
+    for a core cost several times the work (measured: 5 s instead of 31 s CPU on a lifetime
+    run). It also makes the long forms' rounding independent of the core count."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def play_and_clips(v: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eq. 3.10 from a zero state for thresholds ``r`` (K, N): outputs (K, N), and for each
     entry the index of the row where that operator last clipped (-1: never) and the sign
@@ -156,9 +166,8 @@ class LongSteadyProblem:
             pos += m
             # d cost / d g_j = 2 s sum_{k, n: operator n last clipped at j} res_k p_n unit_n sign
             w = rk[:, None] * (p * self.unit)[None, :] * part["last_sign"]
-            last = part["last"]
-            used = last >= 0
-            by_row = np.bincount(last[used], weights=w[used], minlength=len(rk))
+            # (w is 0 where an operator never clipped: its last_sign is 0)
+            by_row = np.bincount(np.maximum(part["last"], 0).ravel(), weights=w.ravel(), minlength=len(rk))
             grad[:4] += 2.0 * self.sign * (part["dg"] @ by_row)
             grad[4:] += 2.0 * (rk @ part["dc"]) * lin[self.nh:self.nh + 2]
         return cost, grad

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from tsa_bench.models.creep import creep_operators
-from tsa_bench.models.long_run_fits import BatchedResiduals, batched_hold_estimates
+from tsa_bench.models.long_run_fits import BatchedResiduals, batched_hold_estimates, one_blas_thread
 from tsa_bench.models.prandtl_ishlinskii import inverse_parameters
 from tsa_bench.models.steps import RunSeries, step_sequence
 from tsa_bench.models import strain_resistance
@@ -223,8 +223,9 @@ class SelfSensingModel:
                 return (est - targets)[:, ok]
 
             both = BatchedResiduals(batch)
-            r0 = both.fun(x0)
-            res = least_squares(both.fun, x0, jac=both.jac, x_scale="jac", max_nfev=max_evaluations)
+            with one_blas_thread():
+                r0 = both.fun(x0)
+                res = least_squares(both.fun, x0, jac=both.jac, x_scale="jac", max_nfev=max_evaluations)
         else:
             r0 = residuals(x0)
             res = least_squares(residuals, x0, x_scale="jac", max_nfev=max_evaluations)

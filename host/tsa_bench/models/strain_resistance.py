@@ -28,13 +28,14 @@ while the motor turns and before the first stop are not modelled (NaN). Above
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import lsq_linear, minimize
 
 from tsa_bench.models.creep import creep_operators
-from tsa_bench.models.long_run_fits import LongSteadyProblem
+from tsa_bench.models.long_run_fits import LongSteadyProblem, one_blas_thread
 from tsa_bench.models.prandtl_ishlinskii import play, rate_thresholds
 from tsa_bench.models.steps import RunSeries, StepSequence, step_sequence
 from tsa_bench.models.transient import EPS_S, decay, fit_decay
@@ -134,13 +135,14 @@ class StrainResistanceModel:
             problem = _SteadyProblem(seqs, targets, n_hysteresis, sign, MIN_LINEAR_FRACTION * abs(slope))
             cost, jac = problem.cost, None
         best = None
-        for x0 in starts:
-            res = minimize(cost, np.clip(x0, [b[0] for b in BOUNDS], [b[1] for b in BOUNDS]), jac=jac,
-                           method="L-BFGS-B", bounds=BOUNDS, options={"maxiter": 300})
-            if best is None or res.fun < best.fun:
-                best = res
+        with one_blas_thread() if long_run else contextlib.nullcontext():
+            for x0 in starts:
+                res = minimize(cost, np.clip(x0, [b[0] for b in BOUNDS], [b[1] for b in BOUNDS]), jac=jac,
+                               method="L-BFGS-B", bounds=BOUNDS, options={"maxiter": 300})
+                if best is None or res.fun < best.fun:
+                    best = res
+            lin = problem.linear(best.x)
         alpha, beta, lam, eps, l1, l2 = (float(x) for x in best.x)
-        lin = problem.linear(best.x)
         nh = n_hysteresis
         return cls(b1, b2, alpha, beta, lam, eps, (l1, l2), (float(lin[nh]), float(lin[nh + 1])),
                    # bvls may return a bound-constrained weight a rounding error below 0 (-1e-20)
