@@ -12,6 +12,11 @@ objective of eq. 3.19 (the direct form's own function) at each result, the RMSE 
 hold samples, the offset y0 and p_0. With ``--self-sensing`` the envelopes are then
 identified both ways on the direct form's forward model (CPU s, largest relative
 difference of the eight parameters, RMSE of the length estimate).
+
+``--thesis-json OUT.json`` instead writes the thesis-sized fits (the step-duration
+procedure of `tsa-bench reproduce`: both models on the 6 s + 32 s runs, 42 holds) as JSON
+with every float in full; run it with another checkout's ``PYTHONPATH`` and ``cmp`` the two
+files to see that the direct forms give the same bits.
 """
 
 from __future__ import annotations
@@ -21,14 +26,6 @@ import time
 
 import numpy as np
 
-from tsa_bench.models.fitting import series
-from tsa_bench.models.self_sensing import SelfSensingModel
-from tsa_bench.models.steps import step_sequence
-from tsa_bench.models.strain_resistance import (LONG_RUN_HOLDS, MIN_LINEAR_FRACTION, N_HYSTERESIS,
-                                                StrainResistanceModel, _SteadyProblem)
-from tsa_bench.models.transient import fit_decay
-from tsa_bench.store import read_run
-from tsa_bench.store.reader import RunData
 
 
 def rmse(pred: np.ndarray, y: np.ndarray) -> float:
@@ -42,12 +39,43 @@ def timed(fn):
     return time.process_time() - c0, out
 
 
+def thesis_json(out: str) -> None:
+    import json
+    import tempfile
+    from pathlib import Path
+
+    from tsa_bench.reproduce.procedures import step_duration_procedure
+
+    res = step_duration_procedure(Path(tempfile.mkdtemp(prefix="fit-forms-")))
+    doc = {m: {"parameters": {k: v["value"] for k, v in o["saved"].parameters.items()}, "rows": o["rows"]}
+           for m, o in res.items()}
+    with open(out, "w") as fh:
+        json.dump(doc, fh, indent=1, sort_keys=True, default=repr)   # json writes floats round-trip exact
+    print(f"wrote {out}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run")
+    ap.add_argument("run", nargs="?")
+    ap.add_argument("--thesis-json", default=None)
     ap.add_argument("--fractions", default="0.05,0.1")
     ap.add_argument("--self-sensing", action="store_true")
     args = ap.parse_args()
+    if args.thesis_json:
+        thesis_json(args.thesis_json)
+        return
+    if not args.run:
+        ap.error("give RUN.h5 (or --thesis-json OUT.json)")
+    # imported here: --thesis-json also runs against a checkout without the long forms
+    from tsa_bench.models.fitting import series
+    from tsa_bench.models.self_sensing import SelfSensingModel
+    from tsa_bench.models.steps import step_sequence
+    from tsa_bench.models.strain_resistance import (LONG_RUN_HOLDS, MIN_LINEAR_FRACTION, N_HYSTERESIS,
+                                                    StrainResistanceModel, _SteadyProblem)
+    from tsa_bench.models.transient import fit_decay
+    from tsa_bench.store import read_run
+    from tsa_bench.store.reader import RunData
+
     whole = read_run(args.run)
     print(f"fit_long_forms: {args.run}, long-run form above {LONG_RUN_HOLDS} holds (forms forced here)")
     for frac in (float(f) for f in args.fractions.split(",")):
