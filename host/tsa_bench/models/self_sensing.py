@@ -22,7 +22,9 @@ before the first motion is the length whose steady model resistance equals the
 median resistance measured there. The eight envelope parameters are identified by
 bounded least squares (scipy) on the training runs' hold-mean lengths (step 6 of the
 thesis's procedure), starting from envelopes that are the identity to 1e-4 over the
-training range. NaN while the motor turns and before the first stop.
+training range (above ``LONG_RUN_HOLDS`` holds the two-point Jacobian is computed in one
+batched pass, :mod:`~tsa_bench.models.long_run_fits`). NaN while the motor turns and before
+the first stop.
 """
 
 from __future__ import annotations
@@ -33,8 +35,10 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from tsa_bench.models.creep import creep_operators
+from tsa_bench.models.long_run_fits import BatchedResiduals, batched_hold_estimates, one_blas_thread
 from tsa_bench.models.prandtl_ishlinskii import inverse_parameters
 from tsa_bench.models.steps import RunSeries, step_sequence
+from tsa_bench.models import strain_resistance
 from tsa_bench.models.strain_resistance import StrainResistanceModel
 
 ENVELOPE_NAMES = ("rho0_ohm", "rho1_per_ohm", "rho2", "rho3_ohm", "phi0_ohm", "phi1_per_ohm", "phi2", "phi3_ohm")
@@ -180,9 +184,14 @@ class SelfSensingModel:
 
     @classmethod
     def identify(cls, forward: StrainResistanceModel, runs: list[RunSeries],
-                 max_evaluations: int = 40) -> "SelfSensingModel":
+                 max_evaluations: int = 40, long_form: bool | None = None) -> "SelfSensingModel":
         """Fit the eight envelope parameters to the training runs' hold-mean lengths
-        (at most ``max_evaluations`` Jacobian evaluations of scipy's least_squares)."""
+        (at most ``max_evaluations`` Jacobian evaluations of scipy's least_squares).
+
+        ``long_form``: None (default) evaluates the two-point Jacobian in one batched pass
+        over the holds (:func:`~tsa_bench.models.long_run_fits.batched_hold_estimates`) above
+        :data:`~tsa_bench.models.strain_resistance.LONG_RUN_HOLDS` holds; True / False forces it.
+        """
         seqs = [step_sequence(r) for r in runs]
         # the u range of the training data: the loading curve over the training lengths
         probe = cls(forward, (1.0, 1.0, 0.0, 0.0), (1.0, 1.0, 0.0, 0.0))
@@ -204,7 +213,21 @@ class SelfSensingModel:
             return (est - targets)[ok]
 
         x0 = np.array(start + start)
-        r0 = residuals(x0)
-        res = least_squares(residuals, x0, x_scale="jac", max_nfev=max_evaluations)
+        if long_form if long_form is not None else sum(len(s.curves) for s in seqs) > strain_resistance.LONG_RUN_HOLDS:
+            probe_cache = cls(forward, start, start)
+            object.__setattr__(probe_cache, "_cache", shared)
+
+            def batch(qs: np.ndarray) -> np.ndarray:
+                est = np.hstack([batched_hold_estimates(probe_cache, r, qs[:, :4], qs[:, 4:], v)
+                                 for r, v in zip(runs, v0)])
+                return (est - targets)[:, ok]
+
+            both = BatchedResiduals(batch)
+            with one_blas_thread():
+                r0 = both.fun(x0)
+                res = least_squares(both.fun, x0, jac=both.jac, x_scale="jac", max_nfev=max_evaluations)
+        else:
+            r0 = residuals(x0)
+            res = least_squares(residuals, x0, x_scale="jac", max_nfev=max_evaluations)
         best = res.x if np.isfinite(res.cost) and 2 * res.cost <= float(r0 @ r0) else x0
         return cls(forward, tuple(float(v) for v in best[:4]), tuple(float(v) for v in best[4:]))
