@@ -7,7 +7,12 @@ off on the run's samples ``idx`` (sorted; default all), from a fresh plant at th
 run's start. On a subsample ``motor_moving`` is the OR over the skipped samples, so
 no motor stop is lost, and a few samples before each kept sample whose twist or load
 changed are simulated too (not returned), so state lagging one sample replays at the
-true spacing. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
+true spacing. Where the config's plant has no memory beyond the present sample
+(:func:`memory` "none": every effect in :data:`MEMORYLESS`) each distinct (twist, load,
+heater, motor) row is simulated once and the result spread to its samples (the same
+numbers, sample for sample); where it remembers only the last motor stop ("stop"), the
+``state`` samples (twist turning points) are not simulated, the stops themselves being
+among ``idx``. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
 config, the run and the subsample, so a config replayed again (the optimiser's start, the
 final fit, a score asked for twice) costs nothing; the arrays it returns are read-only.
 :func:`subsample` picks a few thousand indices keeping every heater and
@@ -37,6 +42,25 @@ CONTEXT = 3
 CHUNK = 1 << 16
 #: turning points per target sample beyond which they are replayed for the state only (:func:`replay_samples`)
 STATE_ONLY = 2
+#: effects whose outputs are a function of the present sample's twist and load alone while
+#: thermal_dynamics is off (the strings then stay at ambient): no state flows between samples
+MEMORYLESS = frozenset({"string_compliance", "radius_growth", "thermal_contraction", "resistance_length",
+                        "resistance_temperature"})
+#: effects that remember only the time since the motor last stopped (``t_since_stop_s``)
+STOP_MEMORY = frozenset({"resistance_transient_decay", "resistance_transient_stretched",
+                         "resistance_transient_two_exp"})
+
+
+def memory(cfg: Mapping[str, Any]) -> str:
+    """What a replay of ``cfg`` (a :func:`deterministic` config) must carry between samples:
+    "none" (every effect in :data:`MEMORYLESS`), "stop" (also :data:`STOP_MEMORY`: the time
+    since the last motor stop) or "path" (anything else: twist path, time, temperature)."""
+    names = {e.name for e in plant_from_config(cfg, seed=0).effects}
+    if names <= MEMORYLESS:
+        return "none"
+    if names <= MEMORYLESS | STOP_MEMORY:
+        return "stop"
+    return "path"
 
 
 def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
@@ -112,6 +136,11 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
 
 def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray]:
+    mem = memory(cfg)
+    if mem == "none":
+        return _memoryless(cfg, inp, idx)
+    if mem == "stop":
+        state = None
     if idx is None:
         return _simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving)
     idx = np.asarray(idx)
@@ -143,6 +172,25 @@ def _simulate(cfg: dict, t: np.ndarray, turns: np.ndarray, volts: np.ndarray, lo
         out = simulate(plant, t[a:b], turns[a:b], volts[a:b], load_g[a:b], moving[a:b])
         length[a:b], res[a:b] = out["length_mm"], out["resistance_ohm"]
     return length, res
+
+
+def _memoryless(cfg: dict, inp: RunInputs, idx: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """A plant without memory on the samples ``idx`` (all when None): each distinct row of
+    (twist, load, heater, motor flag) is simulated once, in sorted order, and spread back."""
+    sel = slice(None) if idx is None else np.asarray(idx)
+    rows = [inp.turns[sel], inp.load_g[sel], inp.volts[sel], inp.moving[sel].astype(float)]
+    n = len(rows[0])
+    if n == 0:
+        return np.zeros(0), np.zeros(0)
+    order = np.lexsort(rows[::-1])
+    new = np.ones(n, bool)
+    new[1:] = np.any([np.diff(r[order]) != 0 for r in rows], axis=0)
+    first = order[new]
+    inverse = np.empty(n, np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    u = [r[first] for r in rows]
+    length, res = _simulate(cfg, np.arange(len(first), dtype=float), u[0], u[2], u[1], u[3] > 0)
+    return length[inverse], res[inverse]
 
 
 def _warm(inp: RunInputs, after_s: float = 300.0) -> np.ndarray:
