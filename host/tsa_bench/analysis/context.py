@@ -88,8 +88,10 @@ class Context:
         return Problem(self.inputs, idx, [~r.heldout[i] for r, i in zip(self.inputs, idx)], self.sigma, self.outputs,
                        self.cache, [p[1] for p in picked])
 
-    def scores(self, cfg: Mapping[str, Any]) -> Scores:
-        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs, cache=self.cache)
+    def scores(self, cfg: Mapping[str, Any], keep_sims: bool = True) -> Scores:
+        """Held-out unit scores of ``cfg``; with ``keep_sims`` also its full-resolution replays."""
+        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs, cache=self.cache,
+                           keep_sims=keep_sims)
 
     def compare(self, a: Scores, b: Scores) -> Comparison:
         return compare(a, b, FLOOR, N_BOOT, self.seed)

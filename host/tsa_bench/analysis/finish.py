@@ -94,7 +94,7 @@ class Finisher:
                 cfg = switch(current.cfg, form, False)
                 drop = calibrate(ctx.small, cfg, baseline_specs(cfg), start=dict(current.values), centre=centre,
                                  max_nfev=REFIT_NFEV)
-                s_drop = ctx.scores(drop.cfg)
+                s_drop = ctx.scores(drop.cfg, keep_sims=False)
             own = ctx.compare(s_drop, cur_scores)
             main = max(ctx.outputs, key=lambda o: own.improvement[o])
             share = vd.share_removed(states[main])

@@ -193,6 +193,24 @@ def _memoryless(cfg: dict, inp: RunInputs, idx: np.ndarray | None) -> tuple[np.n
     return length[inverse], res[inverse]
 
 
+def scoring_samples(inp: RunInputs, idx: np.ndarray) -> np.ndarray:
+    """``idx`` (sorted) with, for each block of consecutive samples in it that begins with
+    the motor still, the whole pause before it from the last moving sample on: a plant that
+    remembers only the last motor stop (:func:`memory` "stop") replays on these exactly as
+    on the whole run (the same time steps since the stop, the same motor flags)."""
+    idx = np.asarray(idx, np.int64)
+    if len(idx) == 0:
+        return idx
+    mv = inp.moving
+    n = len(inp)
+    st = np.where(np.r_[False, mv[:-1] & ~mv[1:]], np.arange(n), -1)
+    np.maximum.accumulate(st, out=st)
+    first = idx[np.r_[True, np.diff(idx) > 1]]
+    first = first[~mv[first] & (st[first] > 0)]
+    parts = [np.arange(st[b] - 1, b) for b in first]
+    return np.unique(np.concatenate([idx, *parts])) if parts else idx
+
+
 def _warm(inp: RunInputs, after_s: float = 300.0) -> np.ndarray:
     """Samples while the heater is on or within ``after_s`` of it (the strings' temperature moves)."""
     on = np.where(inp.volts > 0, np.arange(len(inp)), -1)
