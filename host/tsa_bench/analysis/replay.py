@@ -51,11 +51,22 @@ STOP_MEMORY = frozenset({"resistance_transient_decay", "resistance_transient_str
                          "resistance_transient_two_exp"})
 
 
+#: the plant's effect names by the effects' switches (an effect is built when its ``enabled``,
+#: or its default when absent, is true), so :func:`memory` builds a plant once per set of switches
+_EFFECT_SETS: dict[tuple, frozenset] = {}
+
+
 def memory(cfg: Mapping[str, Any]) -> str:
     """What a replay of ``cfg`` (a :func:`deterministic` config) must carry between samples:
     "none" (every effect in :data:`MEMORYLESS`), "stop" (also :data:`STOP_MEMORY`: the time
     since the last motor stop) or "path" (anything else: twist path, time, temperature)."""
-    names = {e.name for e in plant_from_config(cfg, seed=0).effects}
+    fx = cfg.get("effects") or {}
+    key = tuple(sorted((k, v.get("enabled", "default") if isinstance(v, Mapping) else v) for k, v in fx.items()))
+    names = _EFFECT_SETS.get(key)
+    if names is None:
+        names = _EFFECT_SETS[key] = frozenset(e.name for e in plant_from_config(cfg, seed=0).effects)
+        if len(_EFFECT_SETS) > 256:
+            _EFFECT_SETS.pop(next(iter(_EFFECT_SETS)))
     if names <= MEMORYLESS:
         return "none"
     if names <= MEMORYLESS | STOP_MEMORY:
@@ -85,6 +96,9 @@ class ReplayCache:
         self._bytes = 0
         self.hits = 0
         self.misses = 0
+        #: distinct input rows of recent sample sets (:func:`_row_groups`), a config-free
+        #: grouping every memoryless replay on the same samples shares
+        self.rows: OrderedDict[tuple, tuple[list[np.ndarray], np.ndarray]] = OrderedDict()
 
     @staticmethod
     def key(cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
@@ -129,16 +143,25 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
     key = cache.key(cfg, inp, idx, state)
     out = cache.get(key)
     if out is None:
-        out = _replay(cfg, inp, idx, state)
+        out = _replay(cfg, inp, idx, state, cache, key[1:])
         cache.put(key, out)
     return out
 
 
-def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
-            ) -> tuple[np.ndarray, np.ndarray]:
+def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None,
+            cache: ReplayCache | None = None, rows_key: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     mem = memory(cfg)
     if mem == "none":
-        return _memoryless(cfg, inp, idx)
+        groups = None
+        if cache is not None and rows_key is not None:
+            groups = cache.rows.get(rows_key)
+            if groups is None:
+                groups = cache.rows[rows_key] = _row_groups(inp, idx)
+                while len(cache.rows) > 4:
+                    cache.rows.popitem(last=False)
+            else:
+                cache.rows.move_to_end(rows_key)
+        return _memoryless(cfg, groups or _row_groups(inp, idx))
     if mem == "stop":
         state = None
     if idx is None:
@@ -174,22 +197,30 @@ def _simulate(cfg: dict, t: np.ndarray, turns: np.ndarray, volts: np.ndarray, lo
     return length, res
 
 
-def _memoryless(cfg: dict, inp: RunInputs, idx: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """A plant without memory on the samples ``idx`` (all when None): each distinct row of
-    (twist, load, heater, motor flag) is simulated once, in sorted order, and spread back."""
+def _row_groups(inp: RunInputs, idx: np.ndarray | None) -> tuple[list[np.ndarray], np.ndarray]:
+    """(distinct rows of (twist, load, heater, motor flag) among the samples ``idx`` (all when
+    None), in sorted order; for each sample, which of them it is)."""
     sel = slice(None) if idx is None else np.asarray(idx)
     rows = [inp.turns[sel], inp.load_g[sel], inp.volts[sel], inp.moving[sel].astype(float)]
     n = len(rows[0])
     if n == 0:
-        return np.zeros(0), np.zeros(0)
+        return [r[:0] for r in rows], np.zeros(0, np.int32)
     order = np.lexsort(rows[::-1])
     new = np.ones(n, bool)
     new[1:] = np.any([np.diff(r[order]) != 0 for r in rows], axis=0)
-    first = order[new]
-    inverse = np.empty(n, np.int64)
+    inverse = np.empty(n, np.int32 if n < 2 ** 31 else np.int64)
     inverse[order] = np.cumsum(new) - 1
-    u = [r[first] for r in rows]
-    length, res = _simulate(cfg, np.arange(len(first), dtype=float), u[0], u[2], u[1], u[3] > 0)
+    first = order[new]
+    return [r[first] for r in rows], inverse
+
+
+def _memoryless(cfg: dict, groups: tuple[list[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """A plant without memory on grouped samples (:func:`_row_groups`): each distinct row is
+    simulated once, in sorted order, and spread back to its samples."""
+    u, inverse = groups
+    if len(inverse) == 0:
+        return np.zeros(0), np.zeros(0)
+    length, res = _simulate(cfg, np.arange(len(u[0]), dtype=float), u[0], u[2], u[1], u[3] > 0)
     return length[inverse], res[inverse]
 
 

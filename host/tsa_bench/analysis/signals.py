@@ -112,6 +112,9 @@ class RunBases(Mapping):
     not kept: a regression on one basis at a time holds one (n, k) array, not all of them
     (about 23 columns of float64 per sample otherwise)."""
 
+    #: every array it returns is built for that call: a caller may change it in place
+    fresh = True
+
     def __init__(self, runs: list[RunInputs], r0_ohm: float = 5.0) -> None:
         self.runs, self.r0_ohm = runs, r0_ohm
 
