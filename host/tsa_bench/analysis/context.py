@@ -100,7 +100,8 @@ class Context:
         bases = RunBases(self.inputs, r0)
         out = {}
         for o in self.outputs:
-            res = np.concatenate([np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)])
+            parts = [np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)]
+            res = parts[0] if len(parts) == 1 else np.concatenate(parts)
             out[o] = residual_structure(res, self.noise[o], self.rate, bases, self.moving)
         return out
 

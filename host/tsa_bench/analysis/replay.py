@@ -82,7 +82,9 @@ def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
 
 
 class ReplayCache:
-    """Least-recently-used replays, at most ``max_bytes`` of output arrays in all.
+    """Least-recently-used replays, at most ``max_bytes`` of output arrays in all and none
+    larger than ``max_item_bytes`` (a day of full-resolution replays, rarely asked for twice,
+    is not kept).
 
     A replay is deterministic (noise off, fixed seed), so its result is a function of the
     config, the run and the samples asked for: the key is the config's canonical JSON, the
@@ -90,8 +92,9 @@ class ReplayCache:
     ``idx``.
     """
 
-    def __init__(self, max_bytes: int = 48 * 2 ** 20) -> None:
+    def __init__(self, max_bytes: int = 48 * 2 ** 20, max_item_bytes: int = 4 * 2 ** 20) -> None:
         self.max_bytes = int(max_bytes)
+        self.max_item_bytes = int(max_item_bytes)
         self._items: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
         self._bytes = 0
         self.hits = 0
@@ -118,7 +121,7 @@ class ReplayCache:
 
     def put(self, key: tuple, value: tuple[np.ndarray, np.ndarray]) -> None:
         size = sum(a.nbytes for a in value)
-        if size > self.max_bytes:
+        if size > min(self.max_bytes, self.max_item_bytes):
             return
         for a in value:
             a.setflags(write=False)

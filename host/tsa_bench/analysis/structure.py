@@ -29,7 +29,8 @@ from tsa_bench.analysis.noise import Noise, window_length
 
 ALPHA = 0.01
 SHARE_MIN = 0.2
-#: residuals longer than this (samples) are regressed through the normal equations
+#: residuals longer than this (samples) are regressed through the normal equations and their
+#: autocorrelation (Ljung-Box) summed directly
 LEAN_N = 250_000
 
 
@@ -158,9 +159,12 @@ def ljung_box(x: np.ndarray, lags: int = 20) -> tuple[float, float]:
         return float("nan"), float("nan")
     lags = min(lags, max(1, n // 3))
     x = x - x.mean()
-    m = 1 << int(np.ceil(np.log2(2 * n)))
-    f = np.fft.rfft(x, m)
-    c = np.fft.irfft(f * np.conj(f), m)[: lags + 1]
+    if n > LEAN_N:     # a few lags of a long series: direct sums, not a transform twice its length
+        c = np.array([float(x @ x)] + [float(x[k:] @ x[:-k]) for k in range(1, lags + 1)])
+    else:
+        m = 1 << int(np.ceil(np.log2(2 * n)))
+        f = np.fft.rfft(x, m)
+        c = np.fft.irfft(f * np.conj(f), m)[: lags + 1]
     rho = c[1:] / c[0] if c[0] > 0 else np.zeros(lags)
     k = np.arange(1, lags + 1)
     q = float(n * (n + 2) * np.sum(rho ** 2 / (n - k)))
