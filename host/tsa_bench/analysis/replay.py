@@ -11,8 +11,8 @@ true spacing. Where the config's plant has no memory beyond the present sample
 (:func:`memory` "none": every effect in :data:`MEMORYLESS`) each distinct (twist, load,
 heater, motor) row is simulated once and the result spread to its samples (the same
 numbers, sample for sample); where it remembers only the last motor stop ("stop"), the
-``state`` samples (twist turning points) are not simulated, the stops themselves being
-among ``idx``. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
+``state`` samples (twist turning points) and the context samples are not simulated, the
+stops themselves being among ``idx``. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
 config, the run and the subsample, so a config replayed again (the optimiser's start, the
 final fit, a score asked for twice) costs nothing; the arrays it returns are read-only.
 :func:`subsample` picks a few thousand indices keeping every heater and
@@ -170,10 +170,13 @@ def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray
     if idx is None:
         return _simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving)
     idx = np.asarray(idx)
-    warm = None
-    if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
-        warm = _warm(inp)
-    run_idx, pos = _with_context(inp, idx, warm=warm)
+    if mem == "stop":      # nothing lags a sample: no context (the stops are among idx)
+        run_idx, pos = idx, np.arange(len(idx))
+    else:
+        warm = None
+        if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
+            warm = _warm(inp)
+        run_idx, pos = _with_context(inp, idx, warm=warm)
     if state is not None and len(state):
         run_idx = np.union1d(run_idx, state)
         pos = np.searchsorted(run_idx, idx)
