@@ -12,9 +12,10 @@ true spacing. Where the config's plant has no memory beyond the present sample
 heater, motor) row is simulated once and the result spread to its samples (the same
 numbers, sample for sample); where it remembers only the last motor stop ("stop"), the
 ``state`` samples (twist turning points) and the context samples are not simulated, the
-stops themselves being among ``idx``. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
-config, the run and the subsample, so a config replayed again (the optimiser's start, the
-final fit, a score asked for twice) costs nothing; the arrays it returns are read-only.
+stops themselves being among ``idx``. A :class:`ReplayCache` (one per diagnosis) keeps
+recent replays keyed by the config, the run and the subsample, so a config replayed again
+(the optimiser's start, the final fit, a score asked for twice) costs nothing; the arrays it
+returns are read-only.
 :func:`subsample` picks a few thousand indices keeping every heater and
 load change (and motor start/stop when affordable, else short windows after evenly
 spread stops), and for every kept still sample the stop that began its pause.
@@ -164,7 +165,7 @@ def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray
                     cache.rows.popitem(last=False)
             else:
                 cache.rows.move_to_end(rows_key)
-        return _memoryless(cfg, groups or _row_groups(inp, idx))
+        return _memoryless(cfg, groups if groups is not None else _row_groups(inp, idx))
     if mem == "stop":
         state = None
     if idx is None:
