@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -45,6 +46,9 @@ def test_residual_examples():
     assert residual(RECORDS[0], 11.0) == pytest.approx(2.0)
     assert residual(RECORDS[2], 20.0) == pytest.approx(1.0) and residual(RECORDS[2], 5.0) == pytest.approx(-1.0)
     assert residual(RECORDS[2], -10.0) >= 1e3  # wrong sign never agrees within a factor
+    # a subnormal simulated value: sim / value underflows to 0, the residual is still finite and far out
+    tiny = residual(RECORDS[2], 5e-324)
+    assert math.isfinite(tiny) and tiny < -1.0 and not judge(RECORDS[2], 5e-324)
     assert residual(RECORDS[5], 11.0) == 0.0 and residual(RECORDS[5], 9.0) < -1.0
     assert residual(RECORDS[9], 2.5) == 0.0 and residual(RECORDS[9], 3.5) > 1.0
 

@@ -137,7 +137,10 @@ def residual(rec: Record, sim: float) -> float:
         return (sim - v) / (tol * abs(v))
     if v == 0 or sim == 0 or (sim > 0) != (v > 0):
         return 0.0 if sim == v else 1e3
-    return math.log(sim / v) / math.log(tol)
+    ratio = sim / v
+    if ratio == 0.0 or math.isinf(ratio):  # the quotient under- or overflowed (e.g. a subnormal sim)
+        return (math.log(abs(sim)) - math.log(abs(v))) / math.log(tol)
+    return math.log(ratio) / math.log(tol)
 
 
 def evaluate(records: list[Record], lab: Any, plan: CalibrationPlan,
