@@ -88,8 +88,10 @@ class Context:
         return Problem(self.inputs, idx, [~r.heldout[i] for r, i in zip(self.inputs, idx)], self.sigma, self.outputs,
                        self.cache, [p[1] for p in picked])
 
-    def scores(self, cfg: Mapping[str, Any]) -> Scores:
-        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs, cache=self.cache)
+    def scores(self, cfg: Mapping[str, Any], keep_sims: bool = True) -> Scores:
+        """Held-out unit scores of ``cfg``; with ``keep_sims`` also its full-resolution replays."""
+        return unit_scores(cfg, self.inputs, self.units, self.sigma, self.outputs, cache=self.cache,
+                           keep_sims=keep_sims)
 
     def compare(self, a: Scores, b: Scores) -> Comparison:
         return compare(a, b, FLOOR, N_BOOT, self.seed)
@@ -98,7 +100,8 @@ class Context:
         bases = RunBases(self.inputs, r0)
         out = {}
         for o in self.outputs:
-            res = np.concatenate([np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)])
+            parts = [np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)]
+            res = parts[0] if len(parts) == 1 else np.concatenate(parts)
             out[o] = residual_structure(res, self.noise[o], self.rate, bases, self.moving)
         return out
 

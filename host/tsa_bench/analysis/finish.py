@@ -39,7 +39,7 @@ def _series(ctx: Context, before: list[dict], after: list[dict]) -> dict[str, np
         for o in OUTPUTS:
             for key, arr in ((f"{o}_measured", r.output(o)), (f"{o}_before", b[o]), (f"{o}_after", a[o])):
                 parts.setdefault(key, []).append(arr)
-    return {k: np.concatenate(v) for k, v in parts.items()}
+    return {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in parts.items()}   # one run: no copies
 
 
 def _r2_noise_free(ctx: Context, sims: list[dict], o: str) -> float | None:
@@ -94,7 +94,7 @@ class Finisher:
                 cfg = switch(current.cfg, form, False)
                 drop = calibrate(ctx.small, cfg, baseline_specs(cfg), start=dict(current.values), centre=centre,
                                  max_nfev=REFIT_NFEV)
-                s_drop = ctx.scores(drop.cfg)
+                s_drop = ctx.scores(drop.cfg, keep_sims=False)
             own = ctx.compare(s_drop, cur_scores)
             main = max(ctx.outputs, key=lambda o: own.improvement[o])
             share = vd.share_removed(states[main])

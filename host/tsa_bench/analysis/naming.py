@@ -155,7 +155,7 @@ def _refit(ctx: Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...
         start.update({f"{f}.{k}": v for k, v in params.get(f, {}).items()})
     specs = baseline_specs(cfg_on) if len(forms) > 1 else _refit_specs(cfg_on, forms[0])
     fit = calibrate(problem, cfg_on, specs, start=start, centre=centre, max_nfev=REFIT_NFEV)
-    s_new = ctx.scores(fit.cfg)
+    s_new = ctx.scores(fit.cfg, keep_sims=False)
     abl_cfg = fit.cfg
     for f in forms:
         abl_cfg = switch(abl_cfg, f, False)
@@ -170,7 +170,7 @@ def _refit(ctx: Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...
         # current model (every parameter, the full subsample) before turning it down
         fit = calibrate(ctx.problem, fit.cfg, baseline_specs(fit.cfg), start=dict(fit.values), centre=centre,
                         max_nfev=REFIT_NFEV)
-        s_new = ctx.scores(fit.cfg)
+        s_new = ctx.scores(fit.cfg, keep_sims=False)
         c = ctx.compare(cur_scores, s_new)
         v_abl = ctx.problem.vector(abl_cfg := _switch_off(fit.cfg, forms))
         rss_abl = float(v_abl @ v_abl)
@@ -201,7 +201,7 @@ def _own(ctx: Context, fit: Fit, s_fit: Scores, abl_cfg: dict, rss_abl: float | 
     subsample the fit was made on)."""
     if rss_abl is None:
         rss_abl = _rss(problem or ctx.small, abl_cfg)
-    s_abl = ctx.scores(abl_cfg)
+    s_abl = ctx.scores(abl_cfg, keep_sims=False)
     # resample only the units where the form acts (changes the error by a tenth of the floor
     # per sample or more): elsewhere the comparison is about 0 by construction
     acting = np.abs(s_abl.sse - s_fit.sse).sum(axis=1) >= 0.1 * FLOOR * s_fit.count.max(axis=1)
@@ -301,7 +301,7 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
         else:
             fit = calibrate(ctx.small, switch(fit.cfg, g, False), baseline_specs(switch(fit.cfg, g, False)),
                             start=dict(fit.values), centre=centre, max_nfev=REFIT_NFEV)
-            s_new = ctx.scores(fit.cfg)
+            s_new = ctx.scores(fit.cfg, keep_sims=False)
             c = ctx.compare(cur_scores, s_new)
     evidence["named"] = picked
     # polish every parameter on the full subsample (a resistance-side refit kept the length's

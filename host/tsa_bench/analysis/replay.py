@@ -7,9 +7,15 @@ off on the run's samples ``idx`` (sorted; default all), from a fresh plant at th
 run's start. On a subsample ``motor_moving`` is the OR over the skipped samples, so
 no motor stop is lost, and a few samples before each kept sample whose twist or load
 changed are simulated too (not returned), so state lagging one sample replays at the
-true spacing. A :class:`ReplayCache` (one per diagnosis) keeps recent replays keyed by the
-config, the run and the subsample, so a config replayed again (the optimiser's start, the
-final fit, a score asked for twice) costs nothing; the arrays it returns are read-only.
+true spacing. Where the config's plant has no memory beyond the present sample
+(:func:`memory` "none": every effect in :data:`MEMORYLESS`) each distinct (twist, load,
+heater, motor) row is simulated once and the result spread to its samples (the same
+numbers, sample for sample); where it remembers only the last motor stop ("stop"), the
+``state`` samples (twist turning points) and the context samples are not simulated, the
+stops themselves being among ``idx``. A :class:`ReplayCache` (one per diagnosis) keeps
+recent replays keyed by the config, the run and the subsample, so a config replayed again
+(the optimiser's start, the final fit, a score asked for twice) costs nothing; the arrays it
+returns are read-only.
 :func:`subsample` picks a few thousand indices keeping every heater and
 load change (and motor start/stop when affordable, else short windows after evenly
 spread stops), and for every kept still sample the stop that began its pause.
@@ -37,6 +43,36 @@ CONTEXT = 3
 CHUNK = 1 << 16
 #: turning points per target sample beyond which they are replayed for the state only (:func:`replay_samples`)
 STATE_ONLY = 2
+#: effects whose outputs are a function of the present sample's twist and load alone while
+#: thermal_dynamics is off (the strings then stay at ambient): no state flows between samples
+MEMORYLESS = frozenset({"string_compliance", "radius_growth", "thermal_contraction", "resistance_length",
+                        "resistance_temperature"})
+#: effects that remember only the time since the motor last stopped (``t_since_stop_s``)
+STOP_MEMORY = frozenset({"resistance_transient_decay", "resistance_transient_stretched",
+                         "resistance_transient_two_exp"})
+
+
+#: the plant's effect names by the effects' switches (an effect is built when its ``enabled``,
+#: or its default when absent, is true), so :func:`memory` builds a plant once per set of switches
+_EFFECT_SETS: dict[tuple, frozenset] = {}
+
+
+def memory(cfg: Mapping[str, Any]) -> str:
+    """What a replay of ``cfg`` (a :func:`deterministic` config) must carry between samples:
+    "none" (every effect in :data:`MEMORYLESS`), "stop" (also :data:`STOP_MEMORY`: the time
+    since the last motor stop) or "path" (anything else: twist path, time, temperature)."""
+    fx = cfg.get("effects") or {}
+    key = tuple(sorted((k, v.get("enabled", "default") if isinstance(v, Mapping) else v) for k, v in fx.items()))
+    names = _EFFECT_SETS.get(key)
+    if names is None:
+        names = _EFFECT_SETS[key] = frozenset(e.name for e in plant_from_config(cfg, seed=0).effects)
+        if len(_EFFECT_SETS) > 256:
+            _EFFECT_SETS.pop(next(iter(_EFFECT_SETS)))
+    if names <= MEMORYLESS:
+        return "none"
+    if names <= MEMORYLESS | STOP_MEMORY:
+        return "stop"
+    return "path"
 
 
 def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
@@ -47,7 +83,9 @@ def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
 
 
 class ReplayCache:
-    """Least-recently-used replays, at most ``max_bytes`` of output arrays in all.
+    """Least-recently-used replays, at most ``max_bytes`` of output arrays in all and none
+    larger than ``max_item_bytes`` (a day of full-resolution replays, rarely asked for twice,
+    is not kept).
 
     A replay is deterministic (noise off, fixed seed), so its result is a function of the
     config, the run and the samples asked for: the key is the config's canonical JSON, the
@@ -55,12 +93,16 @@ class ReplayCache:
     ``idx``.
     """
 
-    def __init__(self, max_bytes: int = 48 * 2 ** 20) -> None:
+    def __init__(self, max_bytes: int = 48 * 2 ** 20, max_item_bytes: int = 4 * 2 ** 20) -> None:
         self.max_bytes = int(max_bytes)
+        self.max_item_bytes = int(max_item_bytes)
         self._items: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
         self._bytes = 0
         self.hits = 0
         self.misses = 0
+        #: distinct input rows of recent sample sets (:func:`_row_groups`), a config-free
+        #: grouping every memoryless replay on the same samples shares
+        self.rows: OrderedDict[tuple, tuple[list[np.ndarray], np.ndarray]] = OrderedDict()
 
     @staticmethod
     def key(cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
@@ -80,7 +122,7 @@ class ReplayCache:
 
     def put(self, key: tuple, value: tuple[np.ndarray, np.ndarray]) -> None:
         size = sum(a.nbytes for a in value)
-        if size > self.max_bytes:
+        if size > min(self.max_bytes, self.max_item_bytes):
             return
         for a in value:
             a.setflags(write=False)
@@ -105,20 +147,37 @@ def replay(plant_cfg: Mapping[str, Any], inp: RunInputs, idx: np.ndarray | None 
     key = cache.key(cfg, inp, idx, state)
     out = cache.get(key)
     if out is None:
-        out = _replay(cfg, inp, idx, state)
+        out = _replay(cfg, inp, idx, state, cache, key[1:])
         cache.put(key, out)
     return out
 
 
-def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None
-            ) -> tuple[np.ndarray, np.ndarray]:
+def _replay(cfg: dict, inp: RunInputs, idx: np.ndarray | None, state: np.ndarray | None = None,
+            cache: ReplayCache | None = None, rows_key: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    mem = memory(cfg)
+    if mem == "none":
+        groups = None
+        if cache is not None and rows_key is not None:
+            groups = cache.rows.get(rows_key)
+            if groups is None:
+                groups = cache.rows[rows_key] = _row_groups(inp, idx)
+                while len(cache.rows) > 4:
+                    cache.rows.popitem(last=False)
+            else:
+                cache.rows.move_to_end(rows_key)
+        return _memoryless(cfg, groups if groups is not None else _row_groups(inp, idx))
+    if mem == "stop":
+        state = None
     if idx is None:
         return _simulate(cfg, inp.t, inp.turns, inp.volts, inp.load_g, inp.moving)
     idx = np.asarray(idx)
-    warm = None
-    if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
-        warm = _warm(inp)
-    run_idx, pos = _with_context(inp, idx, warm=warm)
+    if mem == "stop":      # nothing lags a sample: no context (the stops are among idx)
+        run_idx, pos = idx, np.arange(len(idx))
+    else:
+        warm = None
+        if (cfg["effects"].get("load_dependence") or {}).get("enabled", True) is not False and np.any(inp.volts > 0):
+            warm = _warm(inp)
+        run_idx, pos = _with_context(inp, idx, warm=warm)
     if state is not None and len(state):
         run_idx = np.union1d(run_idx, state)
         pos = np.searchsorted(run_idx, idx)
@@ -143,6 +202,51 @@ def _simulate(cfg: dict, t: np.ndarray, turns: np.ndarray, volts: np.ndarray, lo
         out = simulate(plant, t[a:b], turns[a:b], volts[a:b], load_g[a:b], moving[a:b])
         length[a:b], res[a:b] = out["length_mm"], out["resistance_ohm"]
     return length, res
+
+
+def _row_groups(inp: RunInputs, idx: np.ndarray | None) -> tuple[list[np.ndarray], np.ndarray]:
+    """(distinct rows of (twist, load, heater, motor flag) among the samples ``idx`` (all when
+    None), in sorted order; for each sample, which of them it is)."""
+    sel = slice(None) if idx is None else np.asarray(idx)
+    rows = [inp.turns[sel], inp.load_g[sel], inp.volts[sel], inp.moving[sel].astype(float)]
+    n = len(rows[0])
+    if n == 0:
+        return [r[:0] for r in rows], np.zeros(0, np.int32)
+    order = np.lexsort(rows[::-1])
+    new = np.ones(n, bool)
+    new[1:] = np.any([np.diff(r[order]) != 0 for r in rows], axis=0)
+    inverse = np.empty(n, np.int32 if n < 2 ** 31 else np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    first = order[new]
+    return [r[first] for r in rows], inverse
+
+
+def _memoryless(cfg: dict, groups: tuple[list[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """A plant without memory on grouped samples (:func:`_row_groups`): each distinct row is
+    simulated once, in sorted order, and spread back to its samples."""
+    u, inverse = groups
+    if len(inverse) == 0:
+        return np.zeros(0), np.zeros(0)
+    length, res = _simulate(cfg, np.arange(len(u[0]), dtype=float), u[0], u[2], u[1], u[3] > 0)
+    return length[inverse], res[inverse]
+
+
+def scoring_samples(inp: RunInputs, idx: np.ndarray) -> np.ndarray:
+    """``idx`` (sorted) with, for each block of consecutive samples in it that begins with
+    the motor still, the whole pause before it from the last moving sample on: a plant that
+    remembers only the last motor stop (:func:`memory` "stop") replays on these exactly as
+    on the whole run (the same time steps since the stop, the same motor flags)."""
+    idx = np.asarray(idx, np.int64)
+    if len(idx) == 0:
+        return idx
+    mv = inp.moving
+    n = len(inp)
+    st = np.where(np.r_[False, mv[:-1] & ~mv[1:]], np.arange(n), -1)
+    np.maximum.accumulate(st, out=st)
+    first = idx[np.r_[True, np.diff(idx) > 1]]
+    first = first[~mv[first] & (st[first] > 0)]
+    parts = [np.arange(st[b] - 1, b) for b in first]
+    return np.unique(np.concatenate([idx, *parts])) if parts else idx
 
 
 def _warm(inp: RunInputs, after_s: float = 300.0) -> np.ndarray:

@@ -5,7 +5,10 @@ Units: squared errors in units of each output's noise variance (dimensionless), 
 
 Contract: :func:`unit_scores` replays a config on every run (full resolution) and sums,
 per held-out resampling unit (:func:`tsa_bench.analysis.holdout.units`) and output,
-the squared noise-normalised error and the sample count. :func:`compare` resamples the
+the squared noise-normalised error and the sample count. Asked for the scores alone
+(``keep_sims`` False), it replays a plant whose memory is at most the last motor stop
+(:func:`tsa_bench.analysis.replay.memory`) on the held-out samples and the pauses they
+begin in only (:func:`tsa_bench.analysis.replay.scoring_samples`): the same numbers. :func:`compare` resamples the
 units with replacement (``B`` times, seeded) and returns, per output and pooled over
 outputs, the mean improvement of B over A (``(SSE_A - SSE_B) / n``, noise variances
 per sample), its 95 % interval and the fraction of replicates in which it exceeds
@@ -25,7 +28,7 @@ import numpy as np
 
 from tsa_bench.analysis.holdout import units
 from tsa_bench.analysis.inputs import RunInputs
-from tsa_bench.analysis.replay import ReplayCache, replay
+from tsa_bench.analysis.replay import ReplayCache, deterministic, memory, replay, scoring_samples
 
 
 @dataclass
@@ -57,22 +60,30 @@ def all_units(runs: list[RunInputs], target: int = 24) -> list[tuple[int, np.nda
 
 def unit_scores(cfg: Mapping[str, Any], runs: list[RunInputs], unit_list: list[tuple[int, np.ndarray]],
                 sigma: Mapping[str, float], outputs: tuple[str, ...],
-                sims: list[dict[str, np.ndarray]] | None = None, cache: ReplayCache | None = None) -> Scores:
+                sims: list[dict[str, np.ndarray]] | None = None, cache: ReplayCache | None = None,
+                keep_sims: bool = True) -> Scores:
+    """Unit scores of ``cfg`` (module docstring); without ``keep_sims`` the result holds no replays."""
+    at: list = [None] * len(runs)    # per run: the replayed samples when not all of them
     if sims is None:
         sims = []
-        for r in runs:
-            length, res = replay(cfg, r, cache=cache)
+        partial = not keep_sims and memory(deterministic(cfg)) != "path"
+        for i, r in enumerate(runs):
+            if partial:
+                mine = [u for j, u in unit_list if j == i]
+                at[i] = scoring_samples(r, np.unique(np.concatenate(mine)) if mine else np.zeros(0, int))
+            length, res = replay(cfg, r, at[i], cache=cache)
             sims.append({"length": length, "resistance": res})
     sse = np.zeros((len(unit_list), len(outputs)))
     cnt = np.zeros((len(unit_list), len(outputs)))
     for k, (i, u) in enumerate(unit_list):
         r = runs[i]
+        pos = u if at[i] is None else np.searchsorted(at[i], u)
         for j, o in enumerate(outputs):
-            d = (sims[i][o][u] - r.output(o)[u]) / sigma[o]
+            d = (sims[i][o][pos] - r.output(o)[u]) / sigma[o]
             d = d[np.isfinite(d) & r.scored[u]]
             sse[k, j] = float(d @ d)
             cnt[k, j] = len(d)
-    return Scores(sse, cnt, outputs, sims)
+    return Scores(sse, cnt, outputs, sims if keep_sims else [])
 
 
 @dataclass

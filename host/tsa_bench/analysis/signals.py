@@ -37,7 +37,10 @@ def _scale(x: np.ndarray) -> np.ndarray:
 
 def _poly(x: np.ndarray, deg: int = 3) -> np.ndarray:
     z = 2.0 * _scale(x) - 1.0
-    return np.column_stack([z ** k for k in range(1, deg + 1)])
+    out = np.empty((len(z), deg))
+    for k in range(1, deg + 1):
+        out[:, k - 1] = z ** k
+    return out
 
 
 def _lag(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
@@ -79,7 +82,11 @@ def _heater(r: RunInputs, r0_ohm: float) -> np.ndarray:
 
 def _motor_angle(r: RunInputs) -> np.ndarray:
     ang = 2.0 * np.pi * r.turns
-    return np.column_stack([np.sin(ang), np.cos(ang), np.sin(2 * ang), np.cos(2 * ang)])
+    out = np.empty((len(ang), 4))
+    out[:, 0], out[:, 1] = np.sin(ang), np.cos(ang)
+    ang *= 2
+    out[:, 2], out[:, 3] = np.sin(ang), np.cos(ang)
+    return out
 
 
 def _measured_length(r: RunInputs) -> np.ndarray:
@@ -111,6 +118,9 @@ class RunBases(Mapping):
     """The bases of several runs (concatenated in run order), each built when asked for and
     not kept: a regression on one basis at a time holds one (n, k) array, not all of them
     (about 23 columns of float64 per sample otherwise)."""
+
+    #: every array it returns is built for that call: a caller may change it in place
+    fresh = True
 
     def __init__(self, runs: list[RunInputs], r0_ohm: float = 5.0) -> None:
         self.runs, self.r0_ohm = runs, r0_ohm

@@ -13,7 +13,9 @@ not noise. The residual is **structured** when p < :data:`ALPHA` **and** S is at
 noise model's relevance floor (half its RMS). :func:`follows` regresses the residual on
 each signal basis (:mod:`tsa_bench.analysis.signals`) and keeps the signals that explain
 a significant and sizeable share of the structured variance (F-test with an effective
-sample size from the residual's lag-1 autocorrelation, share >= :data:`SHARE_MIN`).
+sample size from the residual's lag-1 autocorrelation, share >= :data:`SHARE_MIN`); on a
+residual longer than :data:`LEAN_N` samples through the basis' k x k normal equations (the
+same least-squares fit, without the copies of the n x k basis a QR or SVD makes).
 :func:`ljung_box` (whiteness, reported) and :func:`jumps` (abrupt level changes) help
 describe what is left.
 """
@@ -27,6 +29,9 @@ from tsa_bench.analysis.noise import Noise, window_length
 
 ALPHA = 0.01
 SHARE_MIN = 0.2
+#: residuals longer than this (samples) are regressed through the normal equations and their
+#: autocorrelation (Ljung-Box) summed directly
+LEAN_N = 250_000
 
 
 def _windows(res: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
@@ -76,26 +81,65 @@ def _signal_fits(res: np.ndarray, bases: dict[str, np.ndarray]) -> list[dict]:
     n = len(y)
     if n < 50 or not bases:
         return []
-    rho = float(np.corrcoef(y[1:], y[:-1])[0, 1]) if n > 2 and np.std(y) > 0 else 0.0
+    lean = n > LEAN_N
+    if lean:
+        rho = _lag1_correlation(y) if n > 2 and np.std(y) > 0 else 0.0
+    else:
+        rho = float(np.corrcoef(y[1:], y[:-1])[0, 1]) if n > 2 and np.std(y) > 0 else 0.0
     rho = min(max(rho, 0.0), 0.999)
     n_eff = max(10.0, n * (1 - rho) / (1 + rho))
     tss = float(y @ y)
     out = []
     for name, b in bases.items():
-        x = b[ok]
-        x -= x.mean(axis=0)
-        keep = np.std(x, axis=0) > 1e-12
-        if not keep.any() or tss <= 0:
-            continue
-        x = x[:, keep]
-        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-        ess = float(np.sum((x @ beta) ** 2))
-        k = x.shape[1]
+        if lean:
+            fit = _normal_fit(b, ok, y, owned=bool(getattr(bases, "fresh", False)))
+            if fit is None or tss <= 0:
+                continue
+            ess, k = fit
+        else:
+            x = b[ok]
+            x -= x.mean(axis=0)
+            keep = np.std(x, axis=0) > 1e-12
+            if not keep.any() or tss <= 0:
+                continue
+            x = x[:, keep]
+            beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+            ess = float(np.sum((x @ beta) ** 2))
+            k = x.shape[1]
         r2 = ess / tss
         fstat = (r2 / k) / max((1 - r2) / max(n_eff - k - 1, 1.0), 1e-300)
         out.append({"signal": name, "rms": float(np.sqrt(ess / n)), "r2": r2,
                     "p": float(fdist.sf(fstat, k, max(n_eff - k - 1, 1.0)))})
     return out
+
+
+def _lag1_correlation(y: np.ndarray) -> float:
+    """Pearson correlation of ``y[1:]`` with ``y[:-1]`` without stacking copies of them."""
+    a, b = y[1:], y[:-1]
+    m = len(a)
+    ma, mb = float(a.sum()) / m, float(b.sum()) / m
+    sab = float(a @ b) - m * ma * mb
+    saa, sbb = float(a @ a) - m * ma * ma, float(b @ b) - m * mb * mb
+    return sab / np.sqrt(saa * sbb) if saa > 0 and sbb > 0 else 0.0
+
+
+def _normal_fit(b: np.ndarray, ok: np.ndarray, y: np.ndarray, owned: bool) -> tuple[float, int] | None:
+    """(explained sum of squares, columns used) of the least-squares fit of ``y`` on the
+    mean-removed columns of ``b[ok]`` that vary, by the k x k normal equations; ``b`` is
+    centred in place when ``owned`` (built for this fit alone)."""
+    if ok.all():
+        x = b if owned else b.copy()
+    else:
+        x = b[ok]
+    x -= x.mean(axis=0)
+    g = x.T @ x
+    keep = np.sqrt(np.maximum(np.diag(g), 0.0) / len(x)) > 1e-12
+    if not keep.any():
+        return None
+    g = g[np.ix_(keep, keep)]
+    xty = (x.T @ y)[keep]
+    beta = np.linalg.lstsq(g, xty, rcond=None)[0]
+    return max(float(beta @ g @ beta), 0.0), int(keep.sum())
 
 
 def jumps(res: np.ndarray, noise: Noise, moving: np.ndarray) -> int:
@@ -115,9 +159,12 @@ def ljung_box(x: np.ndarray, lags: int = 20) -> tuple[float, float]:
         return float("nan"), float("nan")
     lags = min(lags, max(1, n // 3))
     x = x - x.mean()
-    m = 1 << int(np.ceil(np.log2(2 * n)))
-    f = np.fft.rfft(x, m)
-    c = np.fft.irfft(f * np.conj(f), m)[: lags + 1]
+    if n > LEAN_N:     # a few lags of a long series: direct sums, not a transform twice its length
+        c = np.array([float(x @ x)] + [float(x[k:] @ x[:-k]) for k in range(1, lags + 1)])
+    else:
+        m = 1 << int(np.ceil(np.log2(2 * n)))
+        f = np.fft.rfft(x, m)
+        c = np.fft.irfft(f * np.conj(f), m)[: lags + 1]
     rho = c[1:] / c[0] if c[0] > 0 else np.zeros(lags)
     k = np.arange(1, lags + 1)
     q = float(n * (n + 2) * np.sum(rho ** 2 / (n - k)))
