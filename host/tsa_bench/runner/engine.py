@@ -457,7 +457,7 @@ class Runner:
             raise RunFailed("the device rebooted during the run (power or reset?); data so far kept")
 
     def _on_sample(self, s: msg.Sample) -> None:
-        counter, t_us = s.counter, s.t_us
+        counter, t_us, step_position, position_raw, resistance_raw, adc_flags, heater_mV, motor_moving, wire = s
         last = self._last_counter
         if last is not None and counter != (last + 1) & 0xFFFFFFFF:   # not simply the next one
             # signed distance on the wrapping u32 counter: <= 0 is a repeat or out of order
@@ -471,10 +471,18 @@ class Runner:
         if t_us > self._now_us:
             self._now_us = t_us
         self._last_counter = counter
-        seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
+        if self._prompt_segment is not None:
+            seg = self._prompt_segment
+        elif wire == NO_SEGMENT:      # self._unwrap(wire), inline
+            seg = -1
+        else:
+            oldest = self._oldest
+            seg = oldest - oldest % WIRE_SEGMENTS + wire
+            if seg < oldest:
+                seg += WIRE_SEGMENTS
         # a row for sample_block (runner/samples.py row(), inline: once per sample)
-        self._rows.append((t_us, s.step_position, s.position_raw, s.resistance_raw, s.adc_flags, s.heater_mV,
-                           s.motor_moving, seg, counter, self._load_g))
+        self._rows.append((t_us, step_position, position_raw, resistance_raw, adc_flags, heater_mV, motor_moving, seg,
+                           counter, self._load_g))
         self.samples += 1
         if self._tracking is not None:
             self._tracking.on_sample(self._t(s.t_us), resistance_ohm(self.bench, s.resistance_raw, s.adc_flags),
