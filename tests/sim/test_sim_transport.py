@@ -11,7 +11,7 @@ from simhost import HELLO
 import tsa_bench.transport  # noqa: F401  (registers sim://)
 from tsa_bench.bench.config import CONFIG_DIR
 from tsa_bench.protocol import MessageDecoder, encode, msg
-from tsa_bench.transport.protocol_sim import Serial, parse_sim_url
+from tsa_bench.transport.protocol_sim import Serial, hand_over_bench, parse_sim_url
 
 E = msg.EventKind
 
@@ -64,6 +64,23 @@ def test_url_parameters():
     port = serial.serial_for_url(f"sim://?bench={bench}&seed=3", timeout=0)
     assert port.device.bench.path == str(bench)
     port.close()
+
+
+def test_a_handed_over_bench_is_used_while_its_file_is_unchanged(tmp_path):
+    from tsa_bench.bench import load_bench
+
+    path = tmp_path / "bench.yaml"
+    text = (CONFIG_DIR / "sim.yaml").read_text()
+    path.write_text(text)
+    bench = load_bench(path)
+    hand_over_bench(bench)
+    with serial.serial_for_url(f"sim://?bench={path}", timeout=0) as port:
+        assert port.device.bench.plant is bench.plant       # not loaded again
+        assert port.device.bench.path == str(path)
+    path.write_text(text.replace("name:", "name: changed", 1))   # the file changed since: loaded again
+    with serial.serial_for_url(f"sim://?bench={path}", timeout=0) as port:
+        assert port.device.bench.plant is not bench.plant
+        assert port.device.bench.name.startswith("changed")
 
 
 @pytest.mark.parametrize("url, complaint", [

@@ -201,6 +201,9 @@ def _open(session: dict):
     bench, plan, port = session["bench"], session["plan"], session["port"]
     speed, seed = session["speed"], session["seed"]
     if port is None and bench.backend == "sim":
+        from tsa_bench.transport.protocol_sim import hand_over_bench
+
+        hand_over_bench(bench)   # the sim:// port uses it: the file is not loaded and checked twice
         click.echo(f"tsa-bench: running '{plan.name}' on the SIMULATED bench ({bench.name}); no hardware is used")
         return _sim_url(session["bench_file"], speed, seed), None
     if port is None and bench.backend == "simavr":

@@ -26,6 +26,12 @@ class TrapezoidProfile:
     def __post_init__(self) -> None:
         if not (self.rate > 0 and self.accel > 0):
             raise ValueError(f"rate and accel must be > 0, got rate={self.rate}, accel={self.accel}")
+        # Every derived quantity at once, by the properties' own functions, into the instance
+        # (where cached_property keeps them): a simulated run makes thousands of profiles, and
+        # cached_property's first reads (each under a lock) cost more than the arithmetic.
+        d = self.__dict__
+        for name in _DERIVED:
+            d[name] = _DERIVED[name](self)
 
     @cached_property
     def _abs(self) -> float:
@@ -81,3 +87,8 @@ class TrapezoidProfile:
         if t < ta + tc:
             return sign * self.peak_rate
         return sign * a * (2 * ta + tc - t)
+
+
+#: the cached properties in dependency order (each reads only those before it)
+_DERIVED = {name: getattr(TrapezoidProfile, name).func
+            for name in ("_abs", "peak_rate", "accel_time", "cruise_time", "duration")}

@@ -36,11 +36,10 @@ the counter gaps in the stored rows.
 
 from __future__ import annotations
 
+import math
 import signal
 import time
 from typing import NamedTuple, Sequence
-
-import numpy as np
 
 from tsa_bench.bench import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
@@ -61,6 +60,8 @@ from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, sampl
 from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
 from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
 
+_SEGMENT_STARTED, _SEGMENT_DONE = int(msg.EventKind.SEGMENT_STARTED), int(msg.EventKind.SEGMENT_DONE)
+_FAULT, _QUEUE_EMPTY = int(msg.EventKind.FAULT), int(msg.EventKind.QUEUE_EMPTY)
 COUNTER_MOD = 1 << 32         # SAMPLE.counter is a u32
 BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
 BLOCK_WALL_S = 0.5            # or this much wall time has passed (segment records and events
@@ -98,11 +99,11 @@ class Runner:
         first = resume.first_segment if resume is not None else 0
         if not 0 <= first <= n:
             raise ValueError(f"resume segment {first} is outside the plan's {n} segments")
-        self._t_start = np.full(n, np.nan)
-        self._done = np.zeros(n, bool)
-        self._done[:first] = True
-        self._parts = np.zeros(n, np.int32)        # device commands of each segment (a long hold: several)
-        self._parts_done = np.zeros(n, np.int32)   # SEGMENT_DONE events seen per segment
+        # per plan segment (plain lists: indexed a few times per segment, which numpy scalars make slow)
+        self._t_start: list[float] = [math.nan] * n   # s; NaN until its SEGMENT_STARTED
+        self._done = [i < first for i in range(n)]
+        self._parts = [0] * n          # device commands of each segment (a long hold: several)
+        self._parts_done = [0] * n     # SEGMENT_DONE events seen per segment
         self._to_send: list[NamedTuple] = []       # commands of segment _next not yet accepted
         self._next = first              # next plan segment to send
         self._oldest = first            # oldest segment not yet done
@@ -449,14 +450,14 @@ class Runner:
                     if not self._done[idx] and not isinstance(self.plan.segments[idx].action, Prompt):
                         start = self._t_start[idx]
                         t_end = self._t(m.t_us)
-                        self._finish_segment(idx, t_end if np.isnan(start) else float(start), t_end, True)
+                        self._finish_segment(idx, t_end if math.isnan(start) else float(start), t_end, True)
         elif isinstance(m, msg.Ack):
             self._free = m.queue_free
         elif isinstance(m, msg.Boot):
             raise RunFailed("the device rebooted during the run (power or reset?); data so far kept")
 
     def _on_sample(self, s: msg.Sample) -> None:
-        counter, t_us = s.counter, s.t_us
+        counter, t_us, step_position, position_raw, resistance_raw, adc_flags, heater_mV, motor_moving, wire = s
         last = self._last_counter
         if last is not None and counter != (last + 1) & 0xFFFFFFFF:   # not simply the next one
             # signed distance on the wrapping u32 counter: <= 0 is a repeat or out of order
@@ -470,10 +471,18 @@ class Runner:
         if t_us > self._now_us:
             self._now_us = t_us
         self._last_counter = counter
-        seg = self._prompt_segment if self._prompt_segment is not None else self._unwrap(s.segment)
+        if self._prompt_segment is not None:
+            seg = self._prompt_segment
+        elif wire == NO_SEGMENT:      # self._unwrap(wire), inline
+            seg = -1
+        else:
+            oldest = self._oldest
+            seg = oldest - oldest % WIRE_SEGMENTS + wire
+            if seg < oldest:
+                seg += WIRE_SEGMENTS
         # a row for sample_block (runner/samples.py row(), inline: once per sample)
-        self._rows.append((t_us, s.step_position, s.position_raw, s.resistance_raw, s.adc_flags, s.heater_mV,
-                           s.motor_moving, seg, counter, self._load_g))
+        self._rows.append((t_us, step_position, position_raw, resistance_raw, adc_flags, heater_mV, motor_moving, seg,
+                           counter, self._load_g))
         self.samples += 1
         if self._tracking is not None:
             self._tracking.on_sample(self._t(s.t_us), resistance_ohm(self.bench, s.resistance_raw, s.adc_flags),
@@ -486,16 +495,16 @@ class Runner:
     def _on_event(self, e: msg.Event) -> None:
         self._now_us = max(self._now_us, e.t_us)
         kind = e.kind
-        if kind == msg.EventKind.SEGMENT_STARTED:
+        if kind == _SEGMENT_STARTED:
             self._free = min(self._free + 1, self.ident.queue_slots)
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._t_start):
                 self._finish_before(idx, e.t_us)
-                if np.isnan(self._t_start[idx]):  # the first of its device commands
+                if math.isnan(self._t_start[idx]):  # the first of its device commands
                     self._t_start[idx] = self._t(e.t_us)
                     if self._settle is not None and self._settle.index == idx:
                         self._settle.t_start = self._t(e.t_us)
-        elif kind == msg.EventKind.SEGMENT_DONE:
+        elif kind == _SEGMENT_DONE:
             idx = self._unwrap(e.segment)
             if 0 <= idx < len(self._done) and not self._done[idx]:
                 self._finish_before(idx, e.t_us)
@@ -505,10 +514,10 @@ class Runner:
                 if idx < self._next and self._parts_done[idx] >= self._parts[idx]:  # its last command
                     start = self._t_start[idx]
                     t_end = self._t(e.t_us)
-                    self._finish_segment(idx, t_end if np.isnan(start) else float(start), t_end, True)
-        elif kind == msg.EventKind.FAULT:
+                    self._finish_segment(idx, t_end if math.isnan(start) else float(start), t_end, True)
+        elif kind == _FAULT:
             raise RunFailed(f"device fault: {msg.Fault(e.code).name.lower()} (segment {self._unwrap(e.segment)})")
-        elif kind == msg.EventKind.QUEUE_EMPTY:
+        elif kind == _QUEUE_EMPTY:
             # An underrun: the device ran dry after a plan segment that is followed by more
             # device work. Not one: set-up and tear-down commands (NO_SEGMENT; over a real
             # link their QUEUE_EMPTY arrives after the first plan segment was sent) and the
@@ -529,7 +538,7 @@ class Runner:
             if not self._done[j] and not isinstance(self.plan.segments[j].action, Prompt):
                 start = self._t_start[j]
                 t = self._t(t_us)
-                self._finish_segment(j, t if np.isnan(start) else float(start), t, True)
+                self._finish_segment(j, t if math.isnan(start) else float(start), t, True)
 
     def _finish_segment(self, idx: int, t_start: float, t_end: float, completed: bool) -> None:
         seg = self.plan.segments[idx]
@@ -546,7 +555,7 @@ class Runner:
     def _close_open_segments(self) -> None:
         """Record the segment(s) cut short by an abort or failure as not completed."""
         for idx in range(self._oldest, min(self._next + 1, len(self._done))):  # + the one being sent (settle, track)
-            if not self._done[idx] and not np.isnan(self._t_start[idx]):
+            if not self._done[idx] and not math.isnan(self._t_start[idx]):
                 self._finish_segment(idx, float(self._t_start[idx]), self._t(self._now_us), False)
 
     def _flush_rows(self, limit: int | None = None) -> None:

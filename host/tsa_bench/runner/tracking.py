@@ -165,7 +165,7 @@ class Tracking:
             if runner._parts_done[idx] >= runner._parts[idx]:
                 t_end = runner._t(runner._now_us)
                 start = runner._t_start[idx]
-                runner._finish_segment(idx, t_end if np.isnan(start) else float(start), t_end, True)
+                runner._finish_segment(idx, t_end if math.isnan(start) else float(start), t_end, True)
             return True
         if runner._parts[idx] - runner._parts_done[idx] >= IN_FLIGHT:
             return False

@@ -325,7 +325,13 @@ class SimDevice:
     def _take_sample(self) -> None:
         t = self.now_s
         ex = self.executor
-        steps, moving = ex.position_at(t)
+        move = ex._move   # ex.position_at(t) inline (this runs once per sample)
+        if move is None:
+            steps, moving = ex.position_steps, False
+        elif t >= ex.end_s:
+            steps, moving = move.target_steps, False
+        else:
+            steps, moving = move.start_steps + round(move.profile.position(t - move.start_s)), True
         heater_mV = ex.heater_mV
         length_mm, resistance_ohm = self.plant.sample(t, steps * self._turns_per_step, heater_mV * 1e-3, moving)
         position_raw, resistance_raw, flags = self.sensors.convert(length_mm, resistance_ohm, heater_mV)
@@ -333,35 +339,39 @@ class SimDevice:
         if heater_mV > 0 or ex.heater_switch_ons != self._heater_seen:
             timing.sense_off()       # the heater came on since the last sample: current off
             self._heater_seen = ex.heater_switch_ons
-        if self._step_us:
-            t_us = self._anchor_us + round(self._k * self._step_us)
+        step_us = self._step_us
+        k = self._k
+        if step_us:
+            t_us = self._anchor_us + round(k * step_us)
             if heater_mV == 0 and not timing.word_since_last(t_us * 1e-6):
                 resistance_raw, flags = 0, flags | _NOT_MEASURED
         else:
-            t_us = self._anchor_us + self._k * self._period_us
-            if heater_mV == 0 and not timing.measured(t_us * 1e-6, self._period_us * 1e-6):
+            period_us = self._period_us
+            t_us = self._anchor_us + k * period_us
+            if heater_mV == 0 and not timing.measured(t_us * 1e-6, period_us * 1e-6):
                 resistance_raw, flags = 0, flags | _NOT_MEASURED
         fields = (self._counter, t_us, steps, position_raw, resistance_raw, flags, heater_mV, 1 if moving else 0,
                   ex.segment)
-        if self._step_us:
+        if step_us:
             self._send_block(self._block.add(msg.Sample(*fields)))
             if len(self._block) >= SAMPLES_PER_BLOCK:     # full: out at once, as the firmware does
                 self._send_block(self._block.flush())
-        elif self._frames is None:
-            data = encode_raw(0x83, self._seq, _SAMPLE_PACK(*fields))
-            self._out += data
-            self._produced += len(data)
-            self._seq = (self._seq + 1) & 0xFFFF
-        else:   # tuple.__new__: the same Sample and Frame as their constructors make, without their Python frames
-            self._frames.append((_new_tuple(Frame, (self._seq, _new_tuple(_Sample, fields))), _SAMPLE_FRAME_BYTES))
-            self._produced += _SAMPLE_FRAME_BYTES
-            self._seq = (self._seq + 1) & 0xFFFF
-        self._counter = (self._counter + 1) & 0xFFFFFFFF
-        self._k += 1
-        if self._step_us:
-            self._next_sample_s = (self._anchor_us + round(self._k * self._step_us)) * 1e-6
         else:
-            self._next_sample_s = (t_us + self._period_us) * 1e-6
+            seq = self._seq
+            if self._frames is None:
+                data = encode_raw(0x83, seq, _SAMPLE_PACK(*fields))
+                self._out += data
+                self._produced += len(data)
+            else:   # tuple.__new__: the same Sample and Frame as their constructors make, without their Python frames
+                self._frames.append((_new_tuple(Frame, (seq, _new_tuple(_Sample, fields))), _SAMPLE_FRAME_BYTES))
+                self._produced += _SAMPLE_FRAME_BYTES
+            self._seq = (seq + 1) & 0xFFFF
+        self._counter = (self._counter + 1) & 0xFFFFFFFF
+        self._k = k = k + 1
+        if step_us:
+            self._next_sample_s = (self._anchor_us + round(k * step_us)) * 1e-6
+        else:
+            self._next_sample_s = (t_us + period_us) * 1e-6
 
     def _send_block(self, block: msg.SampleBlock | None) -> None:
         """Send a closed SAMPLE_BLOCK (a sample frame: not urgent, like SAMPLE)."""

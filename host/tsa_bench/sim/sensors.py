@@ -108,16 +108,21 @@ class ResistanceTiming:
 
     def measured(self, t_s: float, period_s: float) -> bool:
         """Whether the sample starting at ``t_s`` (heater off) gets its resistance."""
-        if self._on_s is None:
-            self._on_s = t_s
+        on_s = self._on_s
+        if on_s is None:
+            on_s = self._on_s = t_s
             if self._anchor_s is None:
                 self._anchor_s = t_s
         if period_s <= 0:
             return True
-        valid_s = self._on_s + CS5513_SETTLE_S
-        armed_s = max(t_s, self._on_s + SENSE_SETTLE_S)
+        valid_s = on_s + CS5513_SETTLE_S
+        armed_s = on_s + SENSE_SETTLE_S
+        if t_s >= armed_s:
+            armed_s = t_s
         deadline_s = t_s + period_s - RESISTANCE_MARGIN_S
-        waiting = self._latest_word(armed_s)
+        # self._latest_word(armed_s) inline (this runs once per sample)
+        k = math.floor((armed_s - self._anchor_s) / CS5513_CONVERSION_S + 1e-9)
+        waiting = self._anchor_s + k * CS5513_CONVERSION_S if k >= 1 else -math.inf
         if waiting > self._read_s:
             self._read_s = waiting
             if armed_s >= valid_s + CS5513_CONVERSION_S - 1e-9:

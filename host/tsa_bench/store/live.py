@@ -157,7 +157,8 @@ class LiveSidecar:
         self._write(rec)
 
     def on_segment(self, segment: SegmentRecord) -> None:
-        self._write(np.zeros(0, dtype=self.dtype), force=True)  # a flush only when samples are waiting
+        if self._dirty:   # a flush only when samples are waiting (thousands of segment ends cost nothing else)
+            self._write(np.zeros(0, dtype=self.dtype), force=True)
 
     def on_event(self, event: EventRecord) -> None:
         pass

@@ -11,6 +11,14 @@ if "tsa_bench.transport" not in serial.protocol_handler_packages:
     serial.protocol_handler_packages.append("tsa_bench.transport")
 
 from tsa_bench.transport.protocol_sim import Pacer, SimUrl, parse_sim_url  # noqa: E402
-from tsa_bench.transport.pty_server import serve_pty  # noqa: E402
 
 __all__ = ["Pacer", "SimUrl", "parse_sim_url", "serve_pty"]
+
+
+def __getattr__(name: str):
+    """``serve_pty`` on first use: a ``sim://`` run does not need the pty server."""
+    if name == "serve_pty":
+        from tsa_bench.transport.pty_server import serve_pty
+
+        return serve_pty
+    raise AttributeError(f"module 'tsa_bench.transport' has no attribute {name!r}")
