@@ -45,7 +45,10 @@ def test_unreachable_scheduler_exits_1_naming_it(tmp_path):
 
 def test_ctrl_c_keeps_finished_points_and_a_rerun_finishes_the_rest(tmp_path):
     study = tmp_path / "slow.yaml"
-    study.write_text("study: slow\nrunner: simulate\nbase: {protocol: {cycles: 120}, bench: {settle_s: 10}}\n"
+    # the ten points take about ten seconds here, far longer than the results table's 2 s flush
+    # interval, so the first part is written while most points are still to run and Ctrl-C lands
+    # in the middle (with shorter points it landed while the finished process was exiting)
+    study.write_text("study: slow\nrunner: simulate\nbase: {protocol: {cycles: 600}, bench: {settle_s: 10}}\n"
                      "vary:\n  bench.seed: {grid: {start: 0, stop: 9, step: 1}}\n")
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", "sweep", str(study), "--out", str(out),
