@@ -70,6 +70,15 @@ def _contents(path) -> dict:
     return out
 
 
+def _assert_same_file(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key in a:
+        if key.startswith("samples/"):
+            assert np.array_equal(a[key], b[key], equal_nan=a[key].dtype.kind == "f"), key
+        else:
+            assert a[key] == b[key], key
+
+
 def test_fast_and_framed_paths_record_the_same_file(tmp_path):
     plan = plan_from_text(PLAN)
     (tmp_path / "fast").mkdir()
@@ -80,12 +89,7 @@ def test_fast_and_framed_paths_record_the_same_file(tmp_path):
     assert fast_stop.exit_status == framed_stop.exit_status == "success"
     assert fast_client._read_frames is not None and framed_client._read_frames is None  # the two paths
     a, b = _contents(fast), _contents(framed)
-    assert a.keys() == b.keys()
-    for key in a:
-        if key.startswith("samples/"):
-            assert np.array_equal(a[key], b[key], equal_nan=a[key].dtype.kind == "f"), key
-        else:
-            assert a[key] == b[key], key
+    _assert_same_file(a, b)
     assert len(a["samples/t"]) > 500 and any(e[1] == b"settled" or e[1] == b"not_settled" for e in a["events"])
 
 
@@ -127,11 +131,7 @@ def test_batched_delivery_records_the_same_file_as_the_framed_path(tmp_path):
     assert fast_stop.exit_status == framed_stop.exit_status == "success"
     assert fast_port.batched_steps >= 10          # batching was on for a good part of the run
     a, b = _contents(fast), _contents(framed)
-    for key in a:
-        if key.startswith("samples/"):
-            assert np.array_equal(a[key], b[key], equal_nan=a[key].dtype.kind == "f"), key
-        else:
-            assert a[key] == b[key], key
+    _assert_same_file(a, b)
     assert len(a["segments"]) == len(plan.segments)
 
 

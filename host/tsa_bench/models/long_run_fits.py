@@ -94,10 +94,10 @@ def creep_and_sensitivity(v: np.ndarray, t_s: np.ndarray, rates: np.ndarray) -> 
     return x, dx
 
 
-class LongSteadyProblem:
-    """Eq. 3.19 in the nonlinear parameters (alpha, beta, lambda, eps, Lambda_1, Lambda_2):
-    :meth:`cost_and_gradient` for scipy's L-BFGS-B (``jac=True``), :meth:`linear` the
-    linear parameters (p_0..p_{N-1}, c_1, c_2, y0) at a point."""
+class SteadyData:
+    """What both forms of the eq. 3.19 fit hold: the hold sequences, the stacked targets
+    (ohm; ``ok`` where finite), ``nh`` play operators, the sign of the resistance-length
+    slope, the least first weight ``min_p0`` and the length span ``scale`` (mm)."""
 
     def __init__(self, seqs: list[StepSequence], targets: list[np.ndarray], nh: int, sign: float,
                  min_p0: float) -> None:
@@ -106,6 +106,16 @@ class LongSteadyProblem:
         self.ok = np.isfinite(self.y)
         vs = np.concatenate([s.length_mm for s in seqs])
         self.scale = max(float(np.ptp(vs)), 1e-9)
+
+
+class LongSteadyProblem(SteadyData):
+    """Eq. 3.19 in the nonlinear parameters (alpha, beta, lambda, eps, Lambda_1, Lambda_2):
+    :meth:`cost_and_gradient` for scipy's L-BFGS-B (``jac=True``), :meth:`linear` the
+    linear parameters (p_0..p_{N-1}, c_1, c_2, y0) at a point."""
+
+    def __init__(self, seqs: list[StepSequence], targets: list[np.ndarray], nh: int, sign: float,
+                 min_p0: float) -> None:
+        super().__init__(seqs, targets, nh, sign, min_p0)
         self.unit = np.arange(nh) / max(nh - 1, 1)
         n_ok = int(self.ok.sum())
         self.ridge = 1e-6 * np.sqrt(n_ok) * self.scale * np.r_[np.ones(nh + 2), 0.0]

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.optimize import lsq_linear, minimize
 
 from tsa_bench.models.creep import creep_operators
-from tsa_bench.models.long_run_fits import LongSteadyProblem, one_blas_thread
+from tsa_bench.models.long_run_fits import LongSteadyProblem, SteadyData, one_blas_thread
 from tsa_bench.models.prandtl_ishlinskii import play, rate_thresholds
 from tsa_bench.models.steps import RunSeries, StepSequence, step_sequence
 from tsa_bench.models.transient import EPS_S, decay, fit_decay
@@ -154,16 +154,8 @@ class StrainResistanceModel:
         return self.sign * self.weights_ohm_per_mm[0]
 
 
-class _SteadyProblem:
+class _SteadyProblem(SteadyData):
     """Eq. 3.19 as a function of the nonlinear parameters; the linear ones solved inside."""
-
-    def __init__(self, seqs: list[StepSequence], targets: list[np.ndarray], nh: int, sign: float,
-                 min_p0: float) -> None:
-        self.seqs, self.nh, self.sign, self.min_p0 = seqs, nh, sign, max(min_p0, 1e-12)
-        self.y = np.concatenate(targets)
-        self.ok = np.isfinite(self.y)
-        vs = np.concatenate([s.length_mm for s in seqs])
-        self.scale = max(float(np.ptp(vs)), 1e-9)
 
     def design(self, x: np.ndarray) -> np.ndarray:
         alpha, beta, lam, eps, l1, l2 = x
