@@ -23,6 +23,8 @@ worth). The device then stops only where the queue needs feeding (protocol/READM
 
 from __future__ import annotations
 
+from collections import deque
+
 from tsa_bench.device import BenchClient
 from tsa_bench.plan import Plan, Prompt, Settle, TrackLength
 from tsa_bench.protocol import msg
@@ -40,11 +42,12 @@ class Pacing:
         #: in process: the device's own clock is known, and heartbeats go before reads
         self.device_clock = client.device_now_us is not None
         self.heartbeat_dev_s = ident.watchdog_ms / 2000.0 if self.device_clock else self.heartbeat_wall_s
-        n = len(plan.segments)
-        self._closed_next = [n] * (n + 1)   # the first closed-loop segment at or after each index
-        for i in range(n - 1, -1, -1):
-            self._closed_next[i] = i if isinstance(plan.segments[i].action, CLOSED_LOOP) else self._closed_next[i + 1]
+        self._segments = plan.segments
         self._margin = 2 * ident.queue_slots + 2
+        # closed-loop segments at or after the oldest one not done, among those looked at so far
+        # (the runner only moves forward, so the plan is read once, just ahead of the sending)
+        self._closed: deque[int] = deque()
+        self._looked = 0   # segments before this index have been looked at
         self.allowed = False      # the runner allows batching only between set-up and tear-down
         self._batching = False
 
@@ -59,8 +62,18 @@ class Pacing:
 
     def update(self, oldest: int, next_to_send: int) -> None:
         """Before a read: batched delivery on or off for where the plan is."""
-        if self.allowed:
-            self.batch(self._closed_next[oldest] > next_to_send + self._margin)
+        if not self.allowed:
+            return
+        horizon = min(len(self._segments), next_to_send + self._margin + 1)
+        i, closed, segments = max(self._looked, oldest), self._closed, self._segments
+        while i < horizon:
+            if isinstance(segments[i].action, CLOSED_LOOP):
+                closed.append(i)
+            i += 1
+        self._looked = i
+        while closed and closed[0] < oldest:
+            closed.popleft()
+        self.batch(not closed)
 
     def batch(self, on: bool) -> None:
         if on != self._batching:
