@@ -135,7 +135,7 @@ def test_a_failing_consumer_stops_the_device_and_the_file_still_closes(tmp_path)
     """A consumer that raises (a full disk, a bug) ends the run as failed after STOP."""
     from tsa_bench.device import BenchClient
     from tsa_bench.runner import AutoOperator, Runner
-    from tsa_bench.runner.documents import SampleBlock
+    from tsa_bench.rundocs import SampleBlock
     from tsa_bench.store import RunWriter
     from tests.runner.helpers import BENCH
 

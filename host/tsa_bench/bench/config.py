@@ -7,7 +7,7 @@ raw counts to physical units, applied on the host (the device reports raw counts
 only by the firmware-in-the-loop bench (:mod:`tsa_bench.simavr`).
 
 :func:`load_bench` / :func:`parse_bench` read the file with the hardened YAML reader
-(:mod:`tsa_bench.documents`) and validate all of it before anything is used: every
+(:mod:`tsa_bench.userfiles`) and validate all of it before anything is used: every
 key and value (finite numbers in range, limits the wire protocol can carry), the
 ``port`` (:mod:`tsa_bench.bench.ports`), the ``plant`` of a simulated bench (built and
 sampled once across the bench limits, so a plant that cannot run is refused here and
@@ -26,7 +26,7 @@ from typing import Any
 
 from tsa_bench.bench.ports import PortPolicyError, check_port
 from tsa_bench.bench.records import check_records
-from tsa_bench.documents import DocumentError, YamlDocument, parse_yaml, read_text_file
+from tsa_bench.userfiles import DocumentError, YamlDocument, parse_yaml, read_text_file
 from tsa_bench.plan.limits import Limits
 from tsa_bench.shipped import shipped
 

@@ -13,7 +13,7 @@ import math
 import re
 from typing import TYPE_CHECKING
 
-from tsa_bench.documents import YamlDocument
+from tsa_bench.userfiles import YamlDocument
 
 if TYPE_CHECKING:
     from tsa_bench.bench.config import BenchConfig

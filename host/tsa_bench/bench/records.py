@@ -25,7 +25,7 @@ import datetime as dt
 import math
 from typing import Any
 
-from tsa_bench.documents import YamlDocument
+from tsa_bench.userfiles import YamlDocument
 
 #: quantity -> (point keys, result keys, rms key)
 QUANTITIES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {

@@ -157,7 +157,7 @@ MAX_MANIPULATOR_SAMPLES = 1_000_000
 
 def _manipulator_config(path: str) -> dict[str, Any]:
     """The manipulator YAML, read with the hardened reader and checked key by key."""
-    from tsa_bench.documents import DocumentError, read_yaml
+    from tsa_bench.userfiles import DocumentError, read_yaml
 
     try:
         doc = read_yaml(path, what="manipulator file")

@@ -44,7 +44,7 @@ from tsa_bench.models.saved import MODEL_NAMES, SavedModel, param
 from tsa_bench.models.self_sensing import SelfSensingModel
 from tsa_bench.models.steps import RunSeries, series_from_arrays
 from tsa_bench.models.strain_resistance import StrainResistanceModel
-from tsa_bench.store.reader import RunData
+from tsa_bench.rundata import RunData
 
 #: the usual inputs and outputs of the thesis (any numeric column is accepted)
 INPUTS = ("turns", "heater_voltage", "resistance")

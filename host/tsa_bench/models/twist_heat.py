@@ -38,7 +38,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from tsa_bench.models.saved import SavedModel
-    from tsa_bench.store.reader import RunData
+    from tsa_bench.rundata import RunData
 
 ADDITIVE = "twist-heat-additive"
 COUPLED = "twist-heat-coupled"

@@ -76,7 +76,7 @@ def model_info(path: Path) -> tuple[tuple[float, float], str | None]:
 
 def _format(path: Path) -> str | None:
     """The ``format`` of a JSON model file (None when it cannot be read; the loader then says why)."""
-    from tsa_bench.documents import DocumentError, read_json
+    from tsa_bench.userfiles import DocumentError, read_json
 
     try:
         doc = read_json(path, what="model file")

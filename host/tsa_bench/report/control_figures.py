@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from tsa_bench.report.fig_common import DPI, pyplot, save, time_scale, title
-from tsa_bench.store import RunData
+from tsa_bench.rundata import RunData
 
 BAND_MM = 0.5
 

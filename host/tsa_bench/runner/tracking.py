@@ -33,7 +33,7 @@ from tsa_bench.control.controller import IDLE, STATES, StepController
 from tsa_bench.plan import Plan, Segment, SetSampling, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.runner.commands import WIRE_SEGMENTS
-from tsa_bench.runner.documents import SampleBlock
+from tsa_bench.rundocs import SampleBlock
 
 if TYPE_CHECKING:
     from tsa_bench.runner.engine import Runner
