@@ -39,7 +39,7 @@ MAX_POINTS = 10_000
 
 
 def _error(doc: YamlDocument, path: tuple[str | int, ...], message: str):
-    from tsa_bench.bench.config import BenchConfigError
+    from tsa_bench.bench.errors import BenchConfigError
 
     shown = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in path).lstrip(".")
     return BenchConfigError(f"{doc.where(*path)}: {shown}: {message}")

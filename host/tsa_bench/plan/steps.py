@@ -42,7 +42,7 @@ from typing import TypeAlias
 from yaml import MappingNode, Node, ScalarNode
 
 from tsa_bench.plan.actions import Action, Hold, Prompt, SetHeater, SetSampling, Settle
-from tsa_bench.plan.limits import Limits
+from tsa_bench.benchdata.limits import Limits
 from tsa_bench.plan.tracking_step import parse_track_length
 from tsa_bench.plan.twist_heat_step import parse_twist_heat
 from tsa_bench.plan.variables import NAME, UnknownVariable, Value, substitute

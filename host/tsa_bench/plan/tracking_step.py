@@ -49,7 +49,7 @@ MAX_S = 7 * 24 * 3600.0
 def model_info(path: Path) -> tuple[tuple[float, float], str | None]:
     """(validity range in mm, training bench name) of a self-sensing model file; raises
     ModelFileError with the reason when it cannot be used for control."""
-    from tsa_bench.control import load_strain
+    from tsa_bench.models import load_strain
     from tsa_bench.models.saved import ModelFileError, load_model_file
 
     if _format(path) == load_strain.FORMAT:   # resistance and twist (load-robust)

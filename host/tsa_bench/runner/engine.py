@@ -42,7 +42,7 @@ from array import array
 import time
 from typing import NamedTuple, Sequence
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
 from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
@@ -57,7 +57,8 @@ from tsa_bench.runner.operator import Operator
 from tsa_bench.runner.pacing import Pacing
 from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
-from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, sample_block
+from tsa_bench.runner.samples import length_mm, resistance_ohm, sample_block
+from tsa_bench.units import G_N_PER_G
 from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
 from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
 

@@ -17,11 +17,10 @@ from itertools import chain
 
 import numpy as np
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.protocol import msg
 from tsa_bench.rundocs import SAMPLE_COLUMNS, SampleBlock
-
-G_N_PER_G = 9.80665e-3        # weight of one gram, N
+from tsa_bench.units import G_N_PER_G
 
 
 def row(s: msg.Sample, segment: int, load_g: float) -> tuple:

@@ -83,7 +83,7 @@ class Tracking:
     def _estimator(self, a: TrackLength) -> Any:
         key = (a.model_path, a.window_s)
         if key not in self._estimators:  # (scipy and the models load only for a plan that tracks)
-            from tsa_bench.control import load_strain
+            from tsa_bench.models import load_strain
             from tsa_bench.control.estimator import OnlineLengthEstimator, TwistResistanceEstimator
             from tsa_bench.models.fitting import from_saved
             from tsa_bench.models.saved import ModelFileError, load_model_file
