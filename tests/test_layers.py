@@ -39,6 +39,15 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("cli",),
 )
 LAYER_OF = {room: i for i, rooms in enumerate(LAYERS) for room in rooms}
+#: Circles between the modules of one room that stay: each closes only through an import
+#: inside a function or under TYPE_CHECKING (the engine and its tracking hook, the plant and
+#: its fused kernel, the run-file writer and its reader), so none runs at import time. Any
+#: other circle fails; a circle cut must leave this list.
+CIRCLES_LEFT = [
+    ["tsa_bench.runner.engine", "tsa_bench.runner.tracking"],
+    ["tsa_bench.sim.fused", "tsa_bench.sim.plant"],
+    ["tsa_bench.store.hdf5", "tsa_bench.store.inspect", "tsa_bench.store.reader"],
+]
 
 
 def module_name(path: Path, package: Path) -> str:
@@ -170,15 +179,18 @@ def test_every_room_has_a_layer(edges):
 
 
 def test_no_import_runs_up(edges):
-    assert upward(edges) == []
+    found = upward(edges)
+    assert not found, "imports running up the layers (LAYERS in this file):\n" + "\n".join(found)
 
 
 def test_no_circle_across_rooms(edges):
-    assert circles(_graph((room_of(a), room_of(b)) for a, b, _ in edges)) == []
+    found = circles(_graph((room_of(a), room_of(b)) for a, b, _ in edges))
+    assert not found, f"rooms importing each other in a circle: {found}"
 
 
 def test_no_circle_between_modules(edges):
-    assert circles(_graph((a, b) for a, b, _ in edges)) == []
+    found = circles(_graph((a, b) for a, b, _ in edges))
+    assert found == CIRCLES_LEFT, f"circles between modules: {found}"
 
 
 def test_the_check_sees_every_kind_of_import(tmp_path):
@@ -205,4 +217,5 @@ def test_the_check_sees_every_kind_of_import(tmp_path):
         "tsa_bench/units/__init__.py:1: tsa_bench.units (layer 1, units) imports tsa_bench.cli (layer 8, cli)",
     ]
     assert circles(_graph((room_of(a), room_of(b)) for a, b, _ in found)) == [["cli", "models"]]
-    assert ["tsa_bench.models.fit", "tsa_bench.models.helper"] in circles(_graph((a, b) for a, b, _ in found))
+    assert circles(_graph((a, b) for a, b, _ in found)) == [
+        ["tsa_bench.cli.main", "tsa_bench.models.fit", "tsa_bench.models.helper"]]

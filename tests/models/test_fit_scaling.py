@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
 
-from tsa_bench.models.fitting import quasi_static_mask
+from tsa_bench.models.fit_samples import quasi_static_mask
 from tsa_bench.models.preisach import PreisachModel, relay_state_blocks, relay_states
 from tsa_bench.rundata import RunData
 

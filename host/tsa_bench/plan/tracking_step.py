@@ -38,7 +38,7 @@ from tsa_bench.plan.actions import TrackLength
 from tsa_bench.plan.yamlnodes import describe
 
 if TYPE_CHECKING:
-    from tsa_bench.plan.steps import Op, StepParser
+    from tsa_bench.plan.ops import Op, StepParsing
 
 KEYS = ("model", "length_mm", "hold_s", "targets", "tolerance_mm", "gain", "initial_mm_per_turn", "settle_s",
         "window_s", "max_step_turns", "rate_turns_per_s", "accel_turns_per_s2", "timeout_s", "on_timeout")
@@ -85,10 +85,10 @@ def _format(path: Path) -> str | None:
     return doc.get("format") if isinstance(doc, dict) else None
 
 
-def parse_track_length(parser: StepParser, node: Node, field: str, source: str) -> list[Op] | None:
+def parse_track_length(parser: StepParsing, node: Node, field: str, source: str) -> list[Op] | None:
     """The ``track_length`` step as one action (None after reporting errors)."""
     from tsa_bench.models.saved import ModelFileError
-    from tsa_bench.plan.steps import ActionOp
+    from tsa_bench.plan.ops import ActionOp
 
     r = parser.reader
     fields = r.mapping(node, field, KEYS, required=("model",))
@@ -160,7 +160,7 @@ def parse_track_length(parser: StepParser, node: Node, field: str, source: str) 
                                  max_step, rate, accel, timeout, on_timeout, valid, bench), source)]
 
 
-def _targets(parser: StepParser, fields: dict[str, Node], node: Node, field: str
+def _targets(parser: StepParsing, fields: dict[str, Node], node: Node, field: str
              ) -> list[tuple[tuple[float, float], Node, str]] | None:
     """[((length_mm, hold_s), node of the length, its field)], or None after an error."""
     r = parser.reader
