@@ -51,6 +51,7 @@ struct harness {
     uint64_t uart_tx_first_cycle, uart_tx_last_cycle;
     uint64_t uart_tx_longest_burst_bytes, uart_tx_longest_burst_cycles;  // back-to-back bytes
     uint64_t uart_cycles_per_byte_fixes;
+    uint64_t uart_rx_lost_rxen_off;  // usb_serial: host bytes that arrived with the receiver off
     uint64_t twi_status_fixes, twi_transactions, twi_naks;
     uint64_t twi_starts, twi_stops, twi_bytes, twi_naks_injected, twi_stretched_bytes;
     uint64_t twi_stuck_events, twi_manual_clocks, twi_releases;
@@ -104,7 +105,8 @@ uint64_t twi_bus_byte_cycles(void);
 void cs5513_attach(struct harness *h, double conversion_us);
 void cs5513_reset(struct harness *h);
 void isr_timing_attach(struct harness *h);
-int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_t errlen);
+int uart_bridge_attach(struct harness *h, const char *pty_link, int usb_serial, char *err, size_t errlen);
+int uart_bridge_take_port_opened(void);     // usb_serial: a host opened the port (once per open)
 // Moves host bytes in and device bytes out; returns bytes still waiting to be sent to the host.
 size_t uart_bridge_service(struct harness *h, int wait_ms);
 uint64_t uart_bridge_last_rx_cycle(void);   // for pacing: the host's last byte or the last reset
@@ -116,3 +118,8 @@ void uart_bridge_discard_output(void);
 void uart_bridge_reset(struct harness *h);
 void uart_bridge_close(void);
 void twi_quirks_apply(struct harness *h);
+// The wire at two baud rates (serial_line.c) and flash images (flash_image.c).
+double serial_line_host_baud(int master_fd);
+size_t serial_line_carry(const uint8_t *in, size_t n, double tx_baud, double rx_baud, uint8_t *out);
+int flash_image_is_elf(const char *path);
+long flash_image_load_hex(avr_t *avr, const char *path, uint32_t limit, char *err, size_t errlen);

@@ -3,27 +3,33 @@
 //   tsa_simavr --elf build/tsa_bench.elf --pty /tmp/x/tty --plant /tmp/x/plant.sock
 //              [--summary out.json] [--lead-ms 1000] [--host-gone-ms 4000]
 //              [--realtime FACTOR] [--max-seconds S] [--cs5513-conversion-us 19125]
-//              [--bootloader ELF|none] [--enable-pull down|up] [--backdrive-steps-per-s N]
+//              [--bootloader ELF|HEX|none] [--enable-pull down|up] [--backdrive-steps-per-s N]
 //              [--twi-fault SPEC]... [--ads-rate-error X] [--trace FILE] [--hang-at S]
-//              [--hang-masked 0|1]
+//              [--hang-masked 0|1] [--usb-serial 0|1]
 //
 // Contract. Opens the pty (uart_bridge), connects to the plant, then holds the AVR in
 // reset until the plant sends 'G' (the host has the port open: like the DTR reset of
 // a Mega). Power-on: SRAM holds random bytes (as a real chip's does), MCUSR says PORF.
 // With --bootloader (the launcher passes build/sim_boot_stock.elf; sim/boot/) every
 // reset runs it first from 0x3E000, as BOOTRST makes the Mega do: ~1 s with the
-// application's pins floating, MCUSR handled as that bootloader does. SIGUSR1 is the
-// DTR pulse of a host opening the port again (external reset, EXTRF); a watchdog reset
-// comes from simavr's WDT. After any reset the rig's parts carry on (they are not reset)
+// application's pins floating, MCUSR handled as that bootloader does. --bootloader also
+// takes an Intel hex file: the Mega's own stk500v2 bootloader (Debian's arduino-core-avr),
+// which avrdude programs through (it writes the flash with SPM). --elf is the application
+// in flash at power-on: an ELF, an Intel hex file, or `blank` (erased flash, which the
+// chip runs through, 0xFFFF after 0xFFFF, into the boot section: here a jump to it).
+// SIGUSR1 is the DTR pulse of a host opening the port again (external reset, EXTRF);
+// with --usb-serial 1 the port behaves as the Mega's USB-serial chip (uart_bridge.c) and
+// the host's opening the port is that pulse. A watchdog reset comes from simavr's WDT. After any reset the rig's parts carry on (they are not reset)
 // and re-arm their timers. --hang-at S makes the main loop hang at S s of device time
 // (a `rjmp .` loop entered with interrupts enabled, outside any ISR), as a firmware bug
-// would, to exercise the watchdog; with --hang-masked 1 the loop runs with interrupts
-// masked (a hang inside an ISR or an atomic block). The watchdog in interrupt-and-reset
+// would, to exercise the watchdog (SIGUSR2: at once); with --hang-masked 1 the loop runs
+// with interrupts masked (a hang inside an ISR or an atomic block). The watchdog in interrupt-and-reset
 // mode resets the chip when its interrupt was not served before the next time-out, as
 // the datasheet says (simavr 1.6 would raise the interrupt forever). Pacing: device time never runs more than --lead-ms past the device time of
 // the host's last byte (or of the last reset), unless the host has been silent for
 // --host-gone-ms of wall time (then it runs free, so the firmware's watchdog can trip);
-// with --realtime it also never runs ahead of wall time x FACTOR. Output the host has
+// with --realtime it also never runs ahead of wall time x FACTOR since the last reset
+// (so a bootloader's wait for a programmer lasts its wall-clock second). Output the host has
 // not read stalls the AVR (back-pressure) until the host is gone. Stops on
 // SIGINT/SIGTERM, when the plant hangs up, when the firmware crashes, or after
 // --max-seconds of device time; then writes the JSON summary (summary.c) and exits 0,
@@ -51,11 +57,19 @@
 
 static volatile sig_atomic_t g_stop = 0;
 static volatile sig_atomic_t g_dtr = 0;
+static volatile sig_atomic_t g_hang_now = 0;
 static void on_signal(int sig) { g_stop = sig; }
 static void on_usr1(int sig) {
     (void)sig;
     g_dtr = 1;
 }
+static void on_usr2(int sig) {
+    (void)sig;
+    g_hang_now = 1;
+}
+static uint64_t g_rt_cycle;  // --realtime counts from the last reset
+static double g_rt_wall;
+static avr_flashaddr_t g_boot_pc;  // 0 = no bootloader
 
 static struct harness H;
 
@@ -76,7 +90,7 @@ static void usage(const char *msg) {
                     "  [--lead-ms MS] [--host-gone-ms MS] [--realtime FACTOR] [--max-seconds S]\n"
                     "  [--cs5513-conversion-us US] [--bootloader ELF|none] [--enable-pull down|up]\n"
                     "  [--backdrive-steps-per-s N] [--twi-fault SPEC]... [--ads-rate-error X]\n"
-                    "  [--trace FILE] [--hang-at S]\n", msg);
+                    "  [--trace FILE] [--hang-at S] [--hang-masked 0|1] [--usb-serial 0|1]\n", msg);
     exit(2);
 }
 
@@ -139,6 +153,8 @@ static void after_reset(const char *cause) {
     drive_reset(&H);
     arm_canary();
     uart_bridge_note_activity(H.avr->cycle + (uint64_t)(BOOT_LEAD_S * HZ_CPU));
+    g_rt_cycle = H.avr->cycle;
+    g_rt_wall = wall_s();
 }
 
 static void reset_avr(uint8_t mcusr_flag, const char *cause) {
@@ -147,14 +163,45 @@ static void reset_avr(uint8_t mcusr_flag, const char *cause) {
     after_reset(cause);
 }
 
-static int load_bootloader(const char *path) {
-    elf_firmware_t boot;
-    memset(&boot, 0, sizeof boot);
-    if (elf_read_firmware(path, &boot) != 0 || boot.flashbase != BOOT_PC || !boot.flash ||
-        boot.flashbase + boot.flashsize > H.avr->flashend + 1)
+// An Intel hex file: named *.hex and not an ELF (anything else is read as an ELF).
+static int is_hex(const char *path) {
+    const size_t n = strlen(path);
+    return n > 4 && !strcmp(path + n - 4, ".hex") && !flash_image_is_elf(path);
+}
+
+static int load_bootloader(const char *path, char *err, size_t errlen) {
+    if (is_hex(path)) {
+        const long lowest = flash_image_load_hex(H.avr, path, H.avr->flashend + 1, err, errlen);
+        if (lowest < 0) return -1;
+        if (lowest != BOOT_PC) {
+            snprintf(err, errlen, "%s starts at 0x%lX, not at the boot section 0x%X", path, lowest, BOOT_PC);
+            return -1;
+        }
+    } else {
+        elf_firmware_t boot;
+        memset(&boot, 0, sizeof boot);
+        if (elf_read_firmware(path, &boot) != 0 || boot.flashbase != BOOT_PC || !boot.flash ||
+            boot.flashbase + boot.flashsize > H.avr->flashend + 1) {
+            snprintf(err, errlen, "%s is not an ELF linked at 0x%X", path, BOOT_PC);
+            return -1;
+        }
+        memcpy(H.avr->flash + boot.flashbase, boot.flash, boot.flashsize);
+    }
+    H.avr->reset_pc = g_boot_pc = BOOT_PC;
+    return 0;
+}
+
+// The application in flash at power-on: an ELF, an Intel hex file or blank (erased).
+static int load_application(const char *path, char *err, size_t errlen) {
+    if (!strcmp(path, "blank")) return 0;
+    if (is_hex(path)) return flash_image_load_hex(H.avr, path, BOOT_PC, err, errlen) < 0 ? -1 : 0;
+    elf_firmware_t fw;
+    memset(&fw, 0, sizeof fw);
+    if (elf_read_firmware(path, &fw) != 0) {
+        snprintf(err, errlen, "cannot read firmware ELF %s", path);
         return -1;
-    memcpy(H.avr->flash + boot.flashbase, boot.flash, boot.flashsize);
-    H.avr->reset_pc = BOOT_PC;
+    }
+    avr_load_firmware(H.avr, &fw);
     return 0;
 }
 
@@ -163,8 +210,8 @@ int main(int argc, char **argv) {
     double lead_ms = 1000, gone_ms = 4000, realtime = 0, max_s = 0, cs_conv_us = 19125, ads_rate_error = 0;
     double backdrive = 16000, hang_at = -1;
     int hang_masked = 0;
-    int enable_pull_up = 0;
-    char err[256];
+    int enable_pull_up = 0, usb_serial = 0;
+    char err[512];
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         if (i + 1 >= argc) usage("every option takes a value");
@@ -189,6 +236,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--trace")) trace_path = v;
         else if (!strcmp(a, "--hang-at")) hang_at = atof(v);
         else if (!strcmp(a, "--hang-masked")) hang_masked = atoi(v) != 0;
+        else if (!strcmp(a, "--usb-serial")) usb_serial = atoi(v) != 0;
         else usage("unknown option");
     }
     if (!elf || !pty || !plant_path) usage("--elf, --pty and --plant are required");
@@ -196,12 +244,6 @@ int main(int argc, char **argv) {
         ads_rate_error < -0.5 || ads_rate_error > 0.5)
         usage("times and factors must be positive (--ads-rate-error within +-0.5)");
 
-    elf_firmware_t fw;
-    memset(&fw, 0, sizeof fw);
-    if (elf_read_firmware(elf, &fw) != 0) {
-        fprintf(stderr, "tsa_simavr: cannot read firmware ELF %s\n", elf);
-        return 2;
-    }
     H.avr = avr_make_mcu_by_name("atmega2560");
     if (!H.avr) {
         fprintf(stderr, "tsa_simavr: simavr has no atmega2560 core\n");
@@ -209,12 +251,15 @@ int main(int argc, char **argv) {
     }
     avr_init(H.avr);
     H.avr->log = LOG_ERROR;
-    avr_load_firmware(H.avr, &fw);
+    if (load_application(elf, err, sizeof err) < 0) {
+        fprintf(stderr, "tsa_simavr: %s\n", err);
+        return 2;
+    }
     H.avr->frequency = (uint32_t)HZ_CPU;
     H.moving_window_cycles = (uint64_t)(0.02 * HZ_CPU);
     H.backdrive_steps_per_s = backdrive;
-    if (boot && load_bootloader(boot) < 0) {
-        fprintf(stderr, "tsa_simavr: cannot load the bootloader %s (an ELF linked at 0x%X)\n", boot, BOOT_PC);
+    if (boot && load_bootloader(boot, err, sizeof err) < 0) {
+        fprintf(stderr, "tsa_simavr: cannot load the bootloader: %s\n", err);
         return 2;
     }
     FILE *trace = NULL;
@@ -223,7 +268,7 @@ int main(int argc, char **argv) {
         return 2;
     }
 
-    if (uart_bridge_attach(&H, pty, err, sizeof err) < 0) {
+    if (uart_bridge_attach(&H, pty, usb_serial, err, sizeof err) < 0) {
         fprintf(stderr, "tsa_simavr: %s\n", err);
         return 2;
     }
@@ -238,6 +283,7 @@ int main(int argc, char **argv) {
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     signal(SIGUSR1, on_usr1);
+    signal(SIGUSR2, on_usr2);
     signal(SIGPIPE, SIG_IGN);
     H.plant = plant_connect(plant_path, err, sizeof err);
     if (!H.plant) {
@@ -264,10 +310,15 @@ int main(int argc, char **argv) {
     const double wall0 = wall_s();
     int crashed = 0;
     while (!g_stop) {
+        if (uart_bridge_take_port_opened() && usb_serial) g_dtr = 1;  // the auto-reset's DTR edge
         if (g_dtr) {
             g_dtr = 0;
             H.resets++;
             reset_avr(MCUSR_EXTRF, "external");
+        }
+        if (g_hang_now) {
+            g_hang_now = 0;
+            hang_cycle = H.avr->cycle;
         }
         size_t pending = uart_bridge_service(&H, 0);
         drive_check_interlock(&H);
@@ -276,7 +327,7 @@ int main(int argc, char **argv) {
         const int host_gone = now_wall - uart_bridge_last_rx_wall() > gone_ms * 1e-3;
         uint64_t limit = host_gone ? UINT64_MAX : uart_bridge_last_rx_cycle() + lead;
         if (realtime > 0) {
-            const uint64_t rt = (uint64_t)((now_wall - wall0) * realtime * HZ_CPU);
+            const uint64_t rt = g_rt_cycle + (uint64_t)((now_wall - g_rt_wall) * realtime * HZ_CPU);
             if (rt < limit) limit = rt;
         }
         if (host_gone && pending > (1u << 20)) uart_bridge_discard_output();
@@ -300,6 +351,10 @@ int main(int argc, char **argv) {
                 after_reset(H.avr->data[REG_MCUSR] & (1u << MCUSR_WDRF) ? "watchdog" : "unknown");
             }
             if (H.avr->pc == 0 && pc_before != 0) H.app_starts++;
+            // Erased flash (0xFFFF) below a bootloader: the chip runs through it into the boot section.
+            if (g_boot_pc && H.avr->pc < g_boot_pc && H.avr->flash[H.avr->pc] == 0xFF &&
+                H.avr->flash[H.avr->pc + 1] == 0xFF)
+                H.avr->pc = g_boot_pc;
         }
         if (H.avr->cycle >= hang_cycle && hang_cycle != UINT64_MAX) {
             if (!H.avr->sreg[S_I]) {

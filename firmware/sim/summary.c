@@ -76,7 +76,8 @@ int summary_write(const struct harness *h, const char *path, const char *elf, co
             (unsigned long long)h->uart_rx_bytes, (unsigned long long)h->uart_tx_bytes, tx_span_s,
             (unsigned long long)h->uart_tx_longest_burst_bytes, burst_rate,
             (unsigned long long)h->uart_rx_held_before_rxen, (unsigned long long)h->uart_cycles_per_byte_fixes);
-    fprintf(f, "  \"host\": {\"last_rx_s\": %.6f},\n", (double)uart_bridge_host_rx_cycle() / HZ_CPU);
+    fprintf(f, "  \"host\": {\"last_rx_s\": %.6f, \"lost_rxen_off\": %llu},\n",
+            (double)uart_bridge_host_rx_cycle() / HZ_CPU, (unsigned long long)h->uart_rx_lost_rxen_off);
     fprintf(f, "  \"twi\": {\"transactions\": %llu, \"naks\": %llu, \"status_fixes\": %llu, \"starts\": %llu,"
                " \"stops\": %llu, \"bytes\": %llu, \"naks_injected\": %llu, \"stretched_bytes\": %llu,"
                " \"stuck_events\": %llu, \"manual_scl_clocks\": %llu, \"releases\": %llu},\n",

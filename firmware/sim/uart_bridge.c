@@ -14,14 +14,21 @@
 //    UCSR0A until the firmware next reads UDR0, as the chip does;
 //  - bytes arriving before RXEN0 is set would be dropped: the bridge holds them
 //    until the receiver is enabled and counts them (the host should wait for BOOT).
+// With usb_serial set the pty behaves as the Mega's USB-serial chip (the 16U2) does:
+// the bridge keeps no slave open, so it sees the host open the port (the master stops
+// reporting a hang-up): that is the DTR edge of the auto-reset, which
+// uart_bridge_take_port_opened() reports once. While no host has the port open, the
+// AVR's output is dropped (not held back). Bytes cross at the host's baud rate against
+// the UART's (serial_line.c): a host at the wrong rate reads and sends garbage. Host
+// bytes arriving while the receiver is off are lost, as on the chip.
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
+#include <poll.h>
 #include <pty.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/select.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
@@ -42,6 +49,10 @@ static struct {
     size_t rx_head, rx_tail;    // host -> AVR
     uint8_t *tx;
     size_t tx_len, tx_cap;      // AVR -> host, not yet written
+    int usb_serial;             // the Mega's USB-serial chip (see the contract)
+    int port_open, port_opened; // a host has the port open; it opened it since last asked
+    uint8_t *wire;
+    size_t wire_len, wire_cap;  // usb_serial: AVR bytes not yet carried over the line
     int pump_running;
     uint64_t last_rx_cycle;     // the host's last byte
     uint64_t activity_cycle;    // a reset: pace as if the host had just spoken
@@ -58,15 +69,22 @@ static double wall_s(void) {
     return ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
-static uint64_t frame_cycles(void) {
+static uint64_t bit_cycles(void) {
     avr_t *avr = g.h->avr;
     avr_uart_t *u = g.uart;
     const uint32_t ubrr = avr_regbit_get(avr, u->ubrrl) | (avr_regbit_get(avr, u->ubrrh) << 8);
+    return (uint64_t)(ubrr + 1) * (avr_regbit_get(avr, u->u2x) ? 8 : 16);
+}
+
+static double uart_baud(void) { return HZ_CPU / (double)bit_cycles(); }
+
+static uint64_t frame_cycles(void) {
+    avr_t *avr = g.h->avr;
+    avr_uart_t *u = g.uart;
     const int databits[] = {5, 6, 7, 8, 8, 8, 8, 9};
     const int db = databits[avr_regbit_get(avr, u->ucsz) | (avr_regbit_get(avr, u->ucsz2) << 2)];
     const int bits = 1 + db + 1 + avr_regbit_get(avr, u->usbs);  // start, data, stop(s); no parity
-    const uint64_t per_bit = (uint64_t)(ubrr + 1) * (avr_regbit_get(avr, u->u2x) ? 8 : 16);
-    return per_bit * (uint64_t)bits;
+    return bit_cycles() * (uint64_t)bits;
 }
 
 // Unread bytes in simavr's RX FIFO (its accessor is defined inside simavr only).
@@ -100,15 +118,21 @@ static avr_cycle_count_t rx_pump(struct avr_t *avr, avr_cycle_count_t when, void
     return when + frame_cycles();
 }
 
+static void append(uint8_t **buf, size_t *len, size_t *cap, const uint8_t *data, size_t n) {
+    if (*len + n > *cap) {
+        while (*len + n > *cap) *cap = *cap ? *cap * 2 : 65536;
+        *buf = realloc(*buf, *cap);
+    }
+    memcpy(*buf + *len, data, n);
+    *len += n;
+}
+
 static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
     (void)irq;
     (void)param;
     struct harness *h = g.h;
-    if (g.tx_len == g.tx_cap) {
-        g.tx_cap = g.tx_cap ? g.tx_cap * 2 : 65536;
-        g.tx = realloc(g.tx, g.tx_cap);
-    }
-    g.tx[g.tx_len++] = (uint8_t)value;
+    append(g.usb_serial ? &g.wire : &g.tx, g.usb_serial ? &g.wire_len : &g.tx_len,
+           g.usb_serial ? &g.wire_cap : &g.tx_cap, (const uint8_t *)&(uint8_t){(uint8_t)value}, 1);
     const uint64_t now = h->avr->cycle;
     // Bursts: bytes written to UDR0 no more than one frame time (+5 %) apart, i.e. the
     // firmware kept the line busy. The longest burst's rate is the TX path's throughput.
@@ -135,9 +159,10 @@ static uint8_t on_udr_read(struct avr_t *avr, avr_io_addr_t addr, void *param) {
     return v;
 }
 
-int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_t errlen) {
+int uart_bridge_attach(struct harness *h, const char *pty_link, int usb_serial, char *err, size_t errlen) {
     memset(&g, 0, sizeof g);
     g.h = h;
+    g.usb_serial = usb_serial;
     for (avr_io_t *io = h->avr->io_port; io; io = io->next)
         if (io->kind && strcmp(io->kind, "uart") == 0 && ((avr_uart_t *)io)->name == '0') g.uart = (avr_uart_t *)io;
     if (!g.uart) {
@@ -173,8 +198,34 @@ int uart_bridge_attach(struct harness *h, const char *pty_link, char *err, size_
         snprintf(err, errlen, "cannot link %s -> %s: %s", pty_link, name, strerror(errno));
         return -1;
     }
+    if (usb_serial) {  // the host's open must be seen: hold no slave of our own
+        close(g.slave);
+        g.slave = -1;
+    }
+    g.port_open = !usb_serial;
     g.last_rx_wall = wall_s();
     return 0;
+}
+
+// usb_serial: the host's bytes as UART0 receives them at its own rate.
+static size_t carry_to_avr(uint8_t *buf, size_t n, uint8_t *out) {
+    if (!avr_regbit_get(g.h->avr, g.uart->rxen)) {
+        g.h->uart_rx_lost_rxen_off += n;
+        return 0;
+    }
+    return serial_line_carry(buf, n, serial_line_host_baud(g.master), uart_baud(), out);
+}
+
+// usb_serial: the AVR's bytes as the host's end receives them (dropped while the port is closed).
+static void carry_to_host(void) {
+    if (!g.wire_len) return;
+    if (g.port_open) {
+        uint8_t *out = malloc(5 * g.wire_len + 1);
+        const size_t m = serial_line_carry(g.wire, g.wire_len, uart_baud(), serial_line_host_baud(g.master), out);
+        append(&g.tx, &g.tx_len, &g.tx_cap, out, m);
+        free(out);
+    }
+    g.wire_len = 0;
 }
 
 size_t uart_bridge_service(struct harness *h, int wait_ms) {
@@ -183,31 +234,44 @@ size_t uart_bridge_service(struct harness *h, int wait_ms) {
         g.uart->cycles_per_byte = real;
         h->uart_cycles_per_byte_fixes++;
     }
-    fd_set rd, wr;
-    FD_ZERO(&rd);
-    FD_ZERO(&wr);
-    FD_SET(g.master, &rd);
-    if (g.tx_len) FD_SET(g.master, &wr);
-    struct timeval tv = {wait_ms / 1000, (wait_ms % 1000) * 1000};
-    if (select(g.master + 1, &rd, &wr, NULL, &tv) <= 0) return g.tx_len;
-    if (FD_ISSET(g.master, &rd)) {
-        uint8_t buf[4096];
+    if (g.usb_serial) carry_to_host();
+    struct pollfd pfd = {g.master, (short)(POLLIN | (g.tx_len ? POLLOUT : 0)), 0};
+    const int ready = poll(&pfd, 1, wait_ms);
+    if (g.usb_serial && (pfd.revents & POLLHUP)) {  // no host has the port open
+        g.port_open = 0;
+        g.tx_len = 0;
+        if (wait_ms > 0) {
+            const struct timespec ts = {0, wait_ms * 1000000L};
+            nanosleep(&ts, NULL);
+        }
+        return 0;
+    }
+    if (!g.port_open) {
+        g.port_open = 1;
+        g.port_opened = 1;
+    }
+    if (ready <= 0) return g.tx_len;
+    if (pfd.revents & POLLIN) {
+        uint8_t buf[4096], carried[5 * sizeof buf + 1];
         const size_t space = (g.rx_tail - g.rx_head - 1) & (RING - 1);
-        const ssize_t n = read(g.master, buf, space < sizeof buf ? space : sizeof buf);
-        for (ssize_t i = 0; i < n; ++i) {
-            g.rx[g.rx_head] = buf[i];
+        const size_t room = g.usb_serial ? space / 5 : space;  // a slow receiver may see 5 bytes in one
+        const ssize_t n = read(g.master, buf, room < sizeof buf ? room : sizeof buf);
+        const size_t m = n <= 0 ? 0 : g.usb_serial ? carry_to_avr(buf, (size_t)n, carried) : (size_t)n;
+        const uint8_t *in = g.usb_serial ? carried : buf;
+        for (size_t i = 0; i < m; ++i) {
+            g.rx[g.rx_head] = in[i];
             g.rx_head = (g.rx_head + 1) & (RING - 1);
         }
         if (n > 0) {
             g.last_rx_cycle = h->avr->cycle;
             g.last_rx_wall = wall_s();
-            if (!g.pump_running) {
-                g.pump_running = 1;
-                avr_cycle_timer_register(h->avr, real, rx_pump, NULL);
-            }
+        }
+        if (m > 0 && !g.pump_running) {
+            g.pump_running = 1;
+            avr_cycle_timer_register(h->avr, real, rx_pump, NULL);
         }
     }
-    if (g.tx_len && FD_ISSET(g.master, &wr)) {
+    if (g.tx_len && (pfd.revents & POLLOUT)) {
         const ssize_t w = write(g.master, g.tx, g.tx_len);
         if (w > 0) {
             memmove(g.tx, g.tx + w, g.tx_len - (size_t)w);
@@ -215,6 +279,12 @@ size_t uart_bridge_service(struct harness *h, int wait_ms) {
         }
     }
     return g.tx_len;
+}
+
+int uart_bridge_take_port_opened(void) {
+    const int opened = g.port_opened;
+    g.port_opened = 0;
+    return opened;
 }
 
 uint64_t uart_bridge_last_rx_cycle(void) {
@@ -237,11 +307,12 @@ void uart_bridge_reset(struct harness *h) {
     }
 }
 double uart_bridge_last_rx_wall(void) { return g.last_rx_wall; }
-void uart_bridge_discard_output(void) { g.tx_len = 0; }
+void uart_bridge_discard_output(void) { g.tx_len = g.wire_len = 0; }
 
 void uart_bridge_close(void) {
     if (g.master > 0) close(g.master);
     if (g.slave > 0) close(g.slave);
     free(g.tx);
-    g.tx = NULL;
+    free(g.wire);
+    g.tx = g.wire = NULL;
 }

@@ -17,7 +17,11 @@ from pathlib import Path
 from tsa_bench.bench.errors import BenchConfigError
 from tsa_bench.benchdata import BenchConfig
 
-__all__ = ["PROJECT_FIRMWARE_DIR", "SimavrSettings", "simavr_settings"]
+__all__ = ["MEGA_BOOTLOADER_HEX", "PROJECT_FIRMWARE_DIR", "SimavrSettings", "simavr_settings"]
+
+#: The Arduino Mega 2560's own stk500v2 bootloader as Debian's ``arduino-core-avr`` ships it
+#: (bookworm 1.8.7: the release with the watchdog fix of Dec 2011 / Jan 2012, Arduino issue 181).
+MEGA_BOOTLOADER_HEX = Path("/usr/share/arduino/hardware/arduino/avr/bootloaders/stk500v2/stk500boot_v2_mega2560.hex")
 
 
 @dataclass(frozen=True)
@@ -31,7 +35,7 @@ class SimavrSettings:
     realtime_factor: float = 0.0          # 0 = as fast as the host keeps up
     cs5513_conversion_us: float = 19125.0
     build: bool = True
-    bootloader: str = "stock"
+    bootloader: str = "stock"             # stock | 2011 (stand-ins) | real (MEGA_BOOTLOADER_HEX) | none
     enable_pull: str = "down"
     backdrive_steps_per_s: float = 16000.0
     ads_rate_error: float = 0.0
@@ -39,6 +43,8 @@ class SimavrSettings:
     hang_at_s: float | None = None
     hang_masked: bool = False             # the injected hang runs with interrupts masked
     trace: bool = False
+    application: str = "firmware"         # in flash at power-on: firmware (the built ELF) | blank | a .hex/.elf path
+    usb_serial: bool = False              # the port as the Mega's USB-serial chip: reset on open, rates matter
 
     @property
     def elf(self) -> Path:
@@ -49,14 +55,26 @@ class SimavrSettings:
         return self.firmware_dir / "build" / "tsa_simavr"
 
     @property
-    def bootloader_elf(self) -> Path | None:
-        return None if self.bootloader == "none" else self.firmware_dir / "build" / f"sim_boot_{self.bootloader}.elf"
+    def application_image(self) -> Path | None:
+        """The application's flash image, or None for blank (erased) flash."""
+        if self.application == "blank":
+            return None
+        return self.elf if self.application == "firmware" else Path(self.application)
+
+    @property
+    def bootloader_image(self) -> Path | None:
+        """The bootloader run at every reset (an ELF stand-in or the real hex), or None."""
+        if self.bootloader == "none":
+            return None
+        if self.bootloader == "real":
+            return MEGA_BOOTLOADER_HEX
+        return self.firmware_dir / "build" / f"sim_boot_{self.bootloader}.elf"
 
 
 _NUMBERS = {"heater_supply_V": (0.0, 100.0), "lead_ms": (1.0, 60000.0), "host_gone_ms": (10.0, 600000.0),
             "realtime_factor": (0.0, 1000.0), "cs5513_conversion_us": (1000.0, 1000000.0),
             "backdrive_steps_per_s": (0.0, 1e6), "ads_rate_error": (-0.5, 0.5)}
-_CHOICES = {"bootloader": ("stock", "2011", "none"), "enable_pull": ("down", "up")}
+_CHOICES = {"bootloader": ("stock", "2011", "real", "none"), "enable_pull": ("down", "up")}
 
 
 #: The project's own firmware folder: the only one built unless the user trusts another.

@@ -6,9 +6,11 @@ Exit codes as in :mod:`tsa_bench.cli`.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import click
 
+from tsa_bench.cli.exits import EXIT_FAILED, fail
 from tsa_bench.cli.loading import ALLOW_URL, TRUST_FW, check_port_or_exit, load_bench_or_exit, load_plan_or_exit
 
 
@@ -66,11 +68,23 @@ def effects(bench_path: str | None) -> None:
 
 @click.command("sim-serve")
 @click.option("--bench", "bench_path", type=click.Path(dir_okay=False), default=None,
-              help="Bench file (default: configs/bench/sim.yaml).")
+              help="Bench file (default: configs/bench/sim.yaml; with --mega configs/bench/simavr.yaml, its plant).")
 @click.option("--speed", type=float, default=None, help="Real-time factor; default as fast as the client reads.")
 @click.option("--seed", type=int, default=None, help="Noise seed.")
-def sim_serve(bench_path: str | None, speed: float | None, seed: int | None) -> None:
+@click.option("--mega", is_flag=True,
+              help="Serve an emulated Arduino Mega instead: simavr running the Mega's own stk500v2 bootloader "
+                   "(Debian's arduino-core-avr) at wall-clock pace, to be programmed with `make -C firmware flash "
+                   "PORT=<the printed port>`; opening the port resets it, as the Mega's auto-reset does.")
+@click.option("--app", default="blank", show_default=True, metavar="blank|firmware|FILE",
+              help="With --mega: the application in flash at power-on: blank (erased), firmware "
+                   "(firmware/build/tsa_bench.elf) or a .hex/.elf file (an older firmware).")
+def sim_serve(bench_path: str | None, speed: float | None, seed: int | None, mega: bool, app: str) -> None:
     """Serve the simulated bench on a pseudo-terminal; prints its path, runs until Ctrl-C."""
+    if mega:
+        _serve_mega(bench_path, speed, seed, app)
+        return
+    if app != "blank":
+        fail("--app goes with --mega (the simulated bench has no flash)")
     from tsa_bench.transport.pty_server import serve_pty
 
     bench = load_bench_or_exit(bench_path)
@@ -86,3 +100,37 @@ def sim_serve(bench_path: str | None, speed: float | None, seed: int | None) -> 
     except KeyboardInterrupt:
         pass
 
+
+def _serve_mega(bench_path: str | None, speed: float | None, seed: int | None, app: str) -> None:
+    """`sim-serve --mega`: the emulated Mega on a pty until Ctrl-C or the harness stops."""
+    from tsa_bench.bench import BenchConfigError
+    from tsa_bench.bench.simavr_section import simavr_settings
+    from tsa_bench.shipped import shipped
+    from tsa_bench.simavr import SimavrBench, SimavrError, mega_settings
+
+    if speed is not None:
+        fail("--speed does not go with --mega: the emulated Mega runs at wall-clock pace, so its bootloader "
+             "waits its real second for avrdude")
+    if app not in ("blank", "firmware") and not Path(app).is_file():
+        fail(f"--app: {app} is not a file (give blank, firmware or a .hex/.elf file)")
+    bench = load_bench_or_exit(bench_path if bench_path is not None else str(shipped("bench/simavr.yaml")))
+    try:
+        settings = mega_settings(simavr_settings(bench), app if app in ("blank", "firmware") else
+                                 str(Path(app).resolve()))
+    except BenchConfigError as exc:
+        fail(str(exc))
+    try:
+        with SimavrBench(bench, settings, seed=seed) as mega:
+            mega.start()
+            click.echo(mega.port_path)
+            click.echo(f"emulated Arduino Mega 2560 (its stk500v2 bootloader, flash: {app}) on {mega.port_path}; "
+                       f"program it: make -C firmware flash PORT={mega.port_path}; then: tsa-bench check --port "
+                       f"{mega.port_path}   (Ctrl-C stops)", err=True)
+            sys.stdout.flush()
+            try:
+                code = mega.wait()
+            except KeyboardInterrupt:
+                return
+        fail(f"the emulated Mega stopped (harness exit code {code}): {mega.stderr_text}", EXIT_FAILED)
+    except SimavrError as exc:
+        fail(str(exc), EXIT_FAILED)

@@ -16,12 +16,16 @@ Failures raise :class:`SimavrError` with what to check.
 
 The rig's settings (the ``simavr:`` section of a bench file, or SimavrSettings, both in
 :mod:`tsa_bench.bench.simavr_section`):
-``bootloader`` stock | 2011 | none (the 2011 release loops after a watchdog reset),
+``bootloader`` stock | 2011 | real | none (stock and 2011 are stand-ins of the stk500v2
+bootloader, the 2011 release loops after a watchdog reset; real is the Mega's own
+bootloader from Debian's arduino-core-avr, which avrdude can program through),
 ``enable_pull`` down | up (the A4988 /ENABLE resistor: down keeps the motor energized
 through a reset), ``backdrive_steps_per_s`` (how fast the loaded strings turn a released
 motor back), ``ads_rate_error`` (the ADS1115's oscillator error, +-0.1 in its data
 sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``hang_at_s`` (with
-``hang_masked``) and ``trace``.
+``hang_masked``) and ``trace``; ``tsa-bench sim-serve --mega`` (:func:`mega_settings`)
+and its tests set ``application`` (blank or an image) and ``usb_serial`` (the port as
+the Mega's USB-serial chip: the host opening it resets the AVR, its baud rate matters).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +43,15 @@ from tsa_bench.bench.simavr_section import SimavrSettings
 from tsa_bench.benchdata import BenchConfig
 from tsa_bench.simavr.plant_server import PlantServer
 
-__all__ = ["SimavrBench", "SimavrError"]
+__all__ = ["SimavrBench", "SimavrError", "mega_settings"]
+
+
+def mega_settings(settings: SimavrSettings, application: str = "blank") -> SimavrSettings:
+    """``settings`` as an Arduino Mega on a USB port: its own stk500v2 bootloader (the real
+    one), ``application`` in flash (blank, firmware or an image path), the port resetting
+    the AVR when opened, the host's baud rate checked, and wall-clock pace (so the
+    bootloader waits its real second for a programmer)."""
+    return replace(settings, bootloader="real", application=application, usb_serial=True, realtime_factor=1.0)
 
 
 class SimavrError(RuntimeError):
@@ -80,23 +93,28 @@ class SimavrBench:
         s = self.settings
         if s.build:
             self.build()
-        for path in (s.elf, s.harness, *([s.bootloader_elf] if s.bootloader_elf else [])):
-            if not path.exists():
-                raise SimavrError(f"{path} does not exist: run `make -C {s.firmware_dir} harness`")
+        if s.bootloader == "real" and not s.bootloader_image.exists():  # type: ignore[union-attr]
+            raise SimavrError(f"the Mega's bootloader {s.bootloader_image} is not installed: install Debian's "
+                              "arduino-core-avr (bash scripts/setup-firmware-toolchain.sh)")
+        for path in (s.harness, s.application_image, s.bootloader_image):
+            if path is not None and not path.exists():
+                raise SimavrError(f"{path} does not exist" + (f": run `make -C {s.firmware_dir} harness`"
+                                                              if path.parent == s.harness.parent else ""))
         self._dir = Path(tempfile.mkdtemp(prefix="tsa-simavr-"))
         try:
             self.plant = PlantServer(self.bench, str(self._dir / "plant.sock"), s.heater_supply_V, seed=self.seed)
-            cmd = [str(s.harness), "--elf", str(s.elf), "--pty", self.port_path,
+            cmd = [str(s.harness), "--elf", str(s.application_image or "blank"), "--pty", self.port_path,
                    "--plant", self.plant.path, "--summary", str(self._dir / "summary.json"),
                    "--lead-ms", repr(s.lead_ms), "--host-gone-ms", repr(s.host_gone_ms),
                    "--realtime", repr(s.realtime_factor), "--cs5513-conversion-us", repr(s.cs5513_conversion_us),
-                   "--bootloader", str(s.bootloader_elf or "none"), "--enable-pull", s.enable_pull,
+                   "--bootloader", str(s.bootloader_image or "none"), "--enable-pull", s.enable_pull,
                    "--backdrive-steps-per-s", repr(s.backdrive_steps_per_s),
                    "--ads-rate-error", repr(s.ads_rate_error)]
             for fault in s.twi_faults:
                 cmd += ["--twi-fault", fault]
+            cmd += ["--hang-masked", "1" if s.hang_masked else "0", "--usb-serial", "1" if s.usb_serial else "0"]
             if s.hang_at_s is not None:
-                cmd += ["--hang-at", repr(s.hang_at_s), "--hang-masked", "1" if s.hang_masked else "0"]
+                cmd += ["--hang-at", repr(s.hang_at_s)]
             if s.trace:
                 cmd += ["--trace", str(self._dir / "trace.txt")]
             self._stderr = open(self._dir / "stderr.txt", "w+")
@@ -120,6 +138,16 @@ class SimavrBench:
         """The DTR pulse of a host opening the port again: an external reset of the AVR."""
         assert self._proc is not None
         self._proc.send_signal(signal.SIGUSR1)
+
+    def wait(self) -> int:
+        """Block until the harness exits (a crash, a lost plant, a signal); its exit code."""
+        assert self._proc is not None
+        return self._proc.wait()
+
+    def hang(self) -> None:
+        """Hang the firmware's main loop now (masked interrupts if ``hang_masked``), as a bug would."""
+        assert self._proc is not None
+        self._proc.send_signal(signal.SIGUSR2)
 
     def set_load_g(self, load_g: float) -> None:
         assert self.plant is not None
