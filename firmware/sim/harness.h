@@ -61,6 +61,8 @@ struct harness {
     uint64_t plant_queries;
     uint64_t resets;               // hardware resets after power-on (DTR, watchdog)
     uint64_t app_starts;           // the application's reset vector reached (incl. restarts)
+    int n_app_start_log;           // the first application start after each reset (device time)
+    double app_start_t_s[MAX_RESETS];
     int n_reset_log;
     double reset_t_s[MAX_RESETS];
     char reset_cause[MAX_RESETS][24];

@@ -70,6 +70,8 @@ static void on_usr2(int sig) {
 static uint64_t g_rt_cycle;  // --realtime counts from the last reset
 static double g_rt_wall;
 static avr_flashaddr_t g_boot_pc;  // 0 = no bootloader
+static int g_erased_logged;        // the run through erased flash is in the reset log since the last reset
+static int g_app_logged;           // the application's start is in app_start_s since the last reset
 
 static struct harness H;
 
@@ -143,6 +145,7 @@ static void find_watchdog(void) {
 
 static void after_reset(const char *cause) {
     log_reset(cause);
+    g_erased_logged = g_app_logged = 0;
     g_tccr3b = 0;
     g_wd_raised_cycle = 0;
     wiring_reapply(&H);
@@ -350,11 +353,20 @@ int main(int argc, char **argv) {
                 H.resets++;
                 after_reset(H.avr->data[REG_MCUSR] & (1u << MCUSR_WDRF) ? "watchdog" : "unknown");
             }
-            if (H.avr->pc == 0 && pc_before != 0) H.app_starts++;
-            // Erased flash (0xFFFF) below a bootloader: the chip runs through it into the boot section.
+            if (H.avr->pc == 0 && pc_before != 0) {
+                H.app_starts++;
+                if (!g_app_logged && H.n_app_start_log < MAX_RESETS)
+                    H.app_start_t_s[H.n_app_start_log++] = harness_time_s(&H);
+                g_app_logged = 1;
+            }
+            // Erased flash (0xFFFF) below a bootloader: the chip runs through it into the boot
+            // section (logged once per reset: a blank board does it every second).
             if (g_boot_pc && H.avr->pc < g_boot_pc && H.avr->flash[H.avr->pc] == 0xFF &&
-                H.avr->flash[H.avr->pc + 1] == 0xFF)
+                H.avr->flash[H.avr->pc + 1] == 0xFF) {
+                if (!g_erased_logged) log_reset("erased_flash");
+                g_erased_logged = 1;
                 H.avr->pc = g_boot_pc;
+            }
         }
         if (H.avr->cycle >= hang_cycle && hang_cycle != UINT64_MAX) {
             if (!H.avr->sreg[S_I]) {

@@ -46,6 +46,8 @@ int summary_write(const struct harness *h, const char *path, const char *elf, co
     fprintf(f, "  \"reset_log\": [");
     for (int i = 0; i < h->n_reset_log; ++i)
         fprintf(f, "%s{\"t_s\": %.6f, \"cause\": \"%s\"}", i ? ", " : "", h->reset_t_s[i], h->reset_cause[i]);
+    fprintf(f, "],\n  \"app_start_s\": [");
+    for (int i = 0; i < h->n_app_start_log; ++i) fprintf(f, "%s%.6f", i ? ", " : "", h->app_start_t_s[i]);
     fprintf(f, "],\n  \"clock_zero_s\": %.6f,\n", (double)h->t3_zero_cycle / HZ_CPU);
     fprintf(f, "  \"steps\": {\"position\": %ld, \"total\": %llu, \"while_disabled\": %llu,"
                " \"backdriven\": %llu, \"min_high_cycles\": %llu, \"min_low_cycles\": %llu},\n",

@@ -15,8 +15,9 @@
 //  - bytes arriving before RXEN0 is set would be dropped: the bridge holds them
 //    until the receiver is enabled and counts them (the host should wait for BOOT).
 // With usb_serial set the pty behaves as the Mega's USB-serial chip (the 16U2) does:
-// the bridge keeps no slave open, so it sees the host open the port (the master stops
-// reporting a hang-up): that is the DTR edge of the auto-reset, which
+// the bridge keeps no slave open and watches the slave's opens and closes (inotify, in
+// order, so a close and a reopen between two looks are both seen). An open while no
+// one has the port open raises DTR: the auto-reset's edge, which
 // uart_bridge_take_port_opened() reports once. While no host has the port open, the
 // AVR's output is dropped (not held back). Bytes cross at the host's baud rate against
 // the UART's (serial_line.c): a host at the wrong rate reads and sends garbage. Host
@@ -29,6 +30,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/inotify.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
@@ -50,7 +52,8 @@ static struct {
     uint8_t *tx;
     size_t tx_len, tx_cap;      // AVR -> host, not yet written
     int usb_serial;             // the Mega's USB-serial chip (see the contract)
-    int port_open, port_opened; // a host has the port open; it opened it since last asked
+    int ino;                    // usb_serial: inotify on the slave (opens and closes)
+    int port_open, port_opened; // openers of the port now; an open from none since last asked
     uint8_t *wire;
     size_t wire_len, wire_cap;  // usb_serial: AVR bytes not yet carried over the line
     int pump_running;
@@ -198,13 +201,36 @@ int uart_bridge_attach(struct harness *h, const char *pty_link, int usb_serial, 
         snprintf(err, errlen, "cannot link %s -> %s: %s", pty_link, name, strerror(errno));
         return -1;
     }
+    g.ino = -1;
     if (usb_serial) {  // the host's open must be seen: hold no slave of our own
         close(g.slave);
         g.slave = -1;
+        g.ino = inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+        if (g.ino < 0 || inotify_add_watch(g.ino, name, IN_OPEN | IN_CLOSE) < 0) {
+            snprintf(err, errlen, "cannot watch %s for opens (inotify): %s", name, strerror(errno));
+            return -1;
+        }
     }
     g.port_open = !usb_serial;
     g.last_rx_wall = wall_s();
     return 0;
+}
+
+// usb_serial: the slave's opens and closes since the last look, in order.
+static void watch_opens(void) {
+    char buf[4096] __attribute__((aligned(__alignof__(struct inotify_event))));
+    ssize_t n;
+    while ((n = read(g.ino, buf, sizeof buf)) > 0) {
+        for (char *p = buf; p < buf + n;) {
+            const struct inotify_event *e = (const struct inotify_event *)p;
+            if (e->mask & IN_OPEN) {
+                if (g.port_open++ == 0) g.port_opened = 1;
+            } else if ((e->mask & IN_CLOSE) && g.port_open > 0) {
+                g.port_open--;
+            }
+            p += sizeof *e + e->len;
+        }
+    }
 }
 
 // usb_serial: the host's bytes as UART0 receives them at its own rate.
@@ -234,24 +260,17 @@ size_t uart_bridge_service(struct harness *h, int wait_ms) {
         g.uart->cycles_per_byte = real;
         h->uart_cycles_per_byte_fixes++;
     }
-    if (g.usb_serial) carry_to_host();
-    struct pollfd pfd = {g.master, (short)(POLLIN | (g.tx_len ? POLLOUT : 0)), 0};
-    const int ready = poll(&pfd, 1, wait_ms);
-    if (g.usb_serial && (pfd.revents & POLLHUP)) {  // no host has the port open
-        g.port_open = 0;
-        g.tx_len = 0;
-        if (wait_ms > 0) {
-            const struct timespec ts = {0, wait_ms * 1000000L};
-            nanosleep(&ts, NULL);
-        }
-        return 0;
+    if (g.usb_serial) {
+        watch_opens();
+        carry_to_host();
+        if (!g.port_open) g.tx_len = 0;
     }
-    if (!g.port_open) {
-        g.port_open = 1;
-        g.port_opened = 1;
-    }
-    if (ready <= 0) return g.tx_len;
-    if (pfd.revents & POLLIN) {
+    // No opener: the master reports a hang-up at once, so wait on the opens alone.
+    struct pollfd pfd[2] = {{g.port_open ? g.master : -1, (short)(POLLIN | (g.tx_len ? POLLOUT : 0)), 0},
+                            {g.ino, POLLIN, 0}};
+    const int ready = poll(pfd, g.usb_serial ? 2 : 1, wait_ms);
+    if (ready <= 0 || !g.port_open) return g.tx_len;
+    if (pfd[0].revents & POLLIN) {
         uint8_t buf[4096], carried[5 * sizeof buf + 1];
         const size_t space = (g.rx_tail - g.rx_head - 1) & (RING - 1);
         const size_t room = g.usb_serial ? space / 5 : space;  // a slow receiver may see 5 bytes in one
@@ -271,7 +290,7 @@ size_t uart_bridge_service(struct harness *h, int wait_ms) {
             avr_cycle_timer_register(h->avr, real, rx_pump, NULL);
         }
     }
-    if (g.tx_len && (pfd.revents & POLLOUT)) {
+    if (g.tx_len && (pfd[0].revents & POLLOUT)) {
         const ssize_t w = write(g.master, g.tx, g.tx_len);
         if (w > 0) {
             memmove(g.tx, g.tx + w, g.tx_len - (size_t)w);
@@ -312,6 +331,7 @@ void uart_bridge_discard_output(void) { g.tx_len = g.wire_len = 0; }
 void uart_bridge_close(void) {
     if (g.master > 0) close(g.master);
     if (g.slave > 0) close(g.slave);
+    if (g.ino >= 0) close(g.ino);
     free(g.tx);
     free(g.wire);
     g.tx = g.wire = NULL;

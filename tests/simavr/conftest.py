@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 import serial
 
+from tests import conformance_scenarios as sc
 import tsa_bench.transport  # noqa: F401  (registers sim://)
 from tsa_bench.bench import load_bench
-from tsa_bench.protocol import MessageDecoder, msg
+from tsa_bench.protocol import MessageDecoder, encode, msg
 from tsa_bench.bench.simavr_section import SimavrSettings
 from tsa_bench.simavr import SimavrBench
 
@@ -54,3 +55,19 @@ def simavr_port(firmware_dir: Path, **settings):
 
 def sim_port():
     return serial.serial_for_url("sim://?seed=1", timeout=0)
+
+
+def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 30.0, heartbeat: bool = False) -> msg.Boot:
+    """The first BOOT among the messages from index ``since`` on; with ``heartbeat`` a
+    HEARTBEAT every 0.2 s of wall time meanwhile (answered or not: the device may hang)."""
+    start, deadline, beat = since, time.monotonic() + timeout_s, time.monotonic()
+    while time.monotonic() < deadline:
+        boots = [m for m in ex.received[start:] if isinstance(m, msg.Boot)]
+        if boots:
+            return boots[-1]
+        if heartbeat and time.monotonic() - beat > 0.2:
+            ex.seq += 1
+            ex.port.write(encode(msg.Heartbeat(), ex.seq))
+            beat = time.monotonic()
+        ex._read_some()
+    raise AssertionError("no BOOT after the reset")

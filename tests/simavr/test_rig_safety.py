@@ -10,7 +10,7 @@ import subprocess
 import time
 
 from tests import conformance_scenarios as sc
-from tests.simavr.conftest import SIMAVR_BENCH, simavr_port
+from tests.simavr.conftest import SIMAVR_BENCH, simavr_port, wait_boot
 from tsa_bench.protocol import encode, msg
 from tsa_bench.bench.simavr_section import SimavrSettings
 from tsa_bench.simavr import SimavrBench
@@ -22,22 +22,6 @@ SETTLE_S, FIRST_REPLY_S = 0.08, 2.0
 def exchange(port) -> sc.Exchange:
     return sc.Exchange(port, settle_s=SETTLE_S, first_reply_s=FIRST_REPLY_S)
 
-
-
-def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 30.0, heartbeat: bool = False) -> msg.Boot:
-    """The first BOOT among the messages from index ``since`` on; with ``heartbeat`` a
-    HEARTBEAT every 0.2 s of wall time meanwhile (answered or not: the device may hang)."""
-    start, deadline, beat = since, time.monotonic() + timeout_s, time.monotonic()
-    while time.monotonic() < deadline:
-        boots = [m for m in ex.received[start:] if isinstance(m, msg.Boot)]
-        if boots:
-            return boots[-1]
-        if heartbeat and time.monotonic() - beat > 0.2:
-            ex.seq += 1
-            ex.port.write(encode(msg.Heartbeat(), ex.seq))
-            beat = time.monotonic()
-        ex._read_some()
-    raise AssertionError("no BOOT after the reset")
 
 
 def test_position_kept_across_a_dtr_reset_and_unknown_after_one_mid_move(firmware_dir):

@@ -5,6 +5,7 @@ Exit codes as in :mod:`tsa_bench.cli`.
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
@@ -119,6 +120,10 @@ def _serve_mega(bench_path: str | None, speed: float | None, seed: int | None, a
                                  str(Path(app).resolve()))
     except BenchConfigError as exc:
         fail(str(exc))
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt  # SIGTERM stops it as Ctrl-C does: the harness and its folder go too
+
+    signal.signal(signal.SIGTERM, stop)
     try:
         with SimavrBench(bench, settings, seed=seed) as mega:
             mega.start()
