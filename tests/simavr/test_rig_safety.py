@@ -117,8 +117,8 @@ def test_a_hang_with_interrupts_masked_ends_in_a_watchdog_system_reset(firmware_
     """A hang with interrupts masked (inside an ISR or an atomic block) cannot run the
     watchdog interrupt: the chip resets at the next time-out (the datasheet's
     interrupt-and-reset mode; simavr 1.6 alone never would). The reset turns the heater
-    off and the firmware boots again. The stock bootloader clears MCUSR and jumps
-    straight to the application after a watchdog reset, and the firmware's watchdog ISR
+    off and the firmware boots again. The stock bootloader clears MCUSR and starts the
+    application after its wait (firmware/sim/README.md), and the firmware's watchdog ISR
     never ran: the BOOT can only say external_reset (firmware/README.md)."""
     with simavr_port(firmware_dir, hang_at_s=8.0, hang_masked=True) as (port, bench):
         ex = exchange(port)
