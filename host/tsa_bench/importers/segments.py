@@ -1,12 +1,21 @@
 """Segments for imported runs: from a column, or inferred from the data like a recorded run's.
 
-Contract of :func:`infer` (columns in their contract units):
+Contract of :func:`infer` (columns in their contract units, thresholds as :data:`DEFAULTS`
+completed by :func:`settings`):
 
-* a new segment starts where the motor starts or stops moving (``turns`` changes by more
-  than ``turns`` turn between rows), where ``heater_voltage`` steps by more than
-  ``heater_V`` or the declared ``load`` by more than ``load_N`` between rows;
-* kinds: ``move`` (motor moving), ``heater`` (still, heater level changed at its start),
-  ``hold`` (otherwise); params say it was inferred and give the levels;
+* the motor moves where ``turns`` changes between rows: a Schmitt trigger on the change per
+  row (moving from above ``turns`` + ``turns_hyst``, still again at or below ``turns`` -
+  ``turns_hyst``; :func:`moving_from_turns`), and still spells shorter than ``min_s``
+  between moving rows are part of the move (a twist logged slower than the samples, sample-held,
+  changes only every few rows);
+* ``heater_voltage`` and the declared ``load`` change level where they depart from the current
+  segment's level (the median of its first ``min_s``) by more than the threshold (``heater_V``,
+  ``load_N``): a departure beyond threshold + hysteresis counts at once, one within the band
+  threshold +- hysteresis (a step of exactly the threshold, whatever its rounding) counts only
+  when it lasts ``min_s``, one below never; a level held less than ``min_s`` is no segment of its own;
+* a new segment starts where the motor starts or stops and where a level changes; kinds
+  ``move`` (motor moving), ``heater`` (still, heater level changed at its start), ``hold``
+  (otherwise); params say it was inferred and give the levels;
 * a run in which nothing changes gets no segments (every sample -1): a single hold would
   make ``fit`` take only its last third.
 
@@ -20,22 +29,111 @@ import numpy as np
 
 from tsa_bench.runner.documents import SegmentRecord
 
-DEFAULTS = {"turns": 0.0, "heater_V": 0.05, "load_N": 0.05}
+#: thresholds (turn, V, N), their hysteresis (None: a fifth of the threshold) and the minimum duration (s)
+DEFAULTS: dict[str, float | None] = {"turns": 0.0, "heater_V": 0.05, "load_N": 0.05, "turns_hyst": None,
+                                     "heater_hyst_V": None, "load_hyst_N": None, "min_s": 0.25}
+_HYST = {"turns": "turns_hyst", "heater_V": "heater_hyst_V", "load_N": "load_hyst_N"}
 
 
-def _steps(x: np.ndarray | None, thr: float) -> np.ndarray:
-    if x is None or len(x) < 2:
-        return np.zeros(max(len(x) if x is not None else 0, 1) - 1, bool)
-    a = np.where(np.isfinite(x), x, -1e300)
-    return np.abs(np.diff(a)) > thr
+def settings(overrides: dict[str, float]) -> dict[str, float]:
+    """:data:`DEFAULTS` with ``overrides``, hysteresis filled (a fifth of its threshold); ValueError when
+    a value is negative or a hysteresis is not below its threshold (a threshold of 0 takes none)."""
+    s = {**DEFAULTS, **overrides}
+    for thr, hyst in _HYST.items():
+        if s[hyst] is None:
+            s[hyst] = 0.2 * float(s[thr])
+    bad = [f"{k}={v:g}" for k, v in s.items() if not (float(v) >= 0.0 and np.isfinite(float(v)))]
+    bad += [f"{h}={s[h]:g} (must be below {t}={s[t]:g})" for t, h in _HYST.items() if s[h] and s[h] >= s[t]]
+    if bad:
+        raise ValueError(", ".join(bad))
+    return {k: float(v) for k, v in s.items()}
 
 
-def moving_from_turns(turns: np.ndarray, thr: float) -> np.ndarray:
-    """1 where ``turns`` changed by more than ``thr`` since the previous row."""
-    m = np.zeros(len(turns), "u1")
-    if len(turns) > 1:
-        m[1:] = (np.abs(np.diff(turns)) > thr) & np.isfinite(turns[1:])
+def describe(s: dict[str, float]) -> str:
+    """The settings as printed in the summary."""
+    return (f"turns {s['turns']:g} turn (hysteresis {s['turns_hyst']:g}), heater {s['heater_V']:g} V "
+            f"(hysteresis {s['heater_hyst_V']:g}), load {s['load_N']:g} N (hysteresis {s['load_hyst_N']:g}), "
+            f"minimum duration {s['min_s']:g} s")
+
+
+def _rows(t: np.ndarray, seconds: float) -> int:
+    """How many rows ``seconds`` spans at the run's median interval (at least 1)."""
+    if len(t) < 2:
+        return 1
+    dt = float(np.median(np.diff(t)))
+    return max(1, int(np.ceil(seconds / dt))) if dt > 0 else 1
+
+
+def moving_from_turns(turns: np.ndarray, t: np.ndarray, s: dict[str, float]) -> np.ndarray:
+    """1 where the motor moves (module contract: Schmitt trigger on the change per row, short still spells closed)."""
+    n = len(turns)
+    m = np.zeros(n, "u1")
+    if n < 2:
+        return m
+    d = np.abs(np.diff(turns))
+    lo, hi = s["turns"] - s["turns_hyst"], s["turns"] + s["turns_hyst"]
+    mv = np.zeros(n, bool)
+    mv[1:] = d > hi   # NaN compares False: still
+    if hi > lo:
+        state = np.full(n, -1, np.int8)   # -1: in the band, keeps the state before
+        state[0] = 0
+        state[1:][mv[1:]] = 1
+        state[1:][~np.isfinite(d) | (d <= lo)] = 0
+        idx = np.where(state >= 0, np.arange(n), 0)
+        np.maximum.accumulate(idx, out=idx)
+        mv = state[idx] == 1
+    # close still spells shorter than min_s that lie between moving rows
+    edges = np.diff(mv.astype(np.int8))
+    gap_start = np.flatnonzero(edges == -1) + 1   # first still row after a move
+    gap_end = np.flatnonzero(edges == 1) + 1      # first moving row after a still spell
+    if len(gap_start) and len(gap_end):
+        gap_end = gap_end[gap_end > gap_start[0]]
+        k = min(len(gap_start), len(gap_end))
+        a, b = gap_start[:k], gap_end[:k]
+        short = t[b] - t[a] < s["min_s"]
+        fill = np.zeros(n + 1, np.int64)
+        np.add.at(fill, a[short], 1)
+        np.add.at(fill, b[short], -1)
+        mv |= np.cumsum(fill[:n]) > 0
+    m[mv] = 1
     return m
+
+
+def _departure(x: np.ndarray, start: int, level: float, edge: float) -> int | None:
+    """First row >= ``start`` whose value is more than ``edge`` from ``level`` (NaN never), or None."""
+    block, n = 1024, len(x)
+    while start < n:
+        hit = np.flatnonzero(np.abs(x[start:start + block] - level) > edge)
+        if len(hit):
+            return start + int(hit[0])
+        start += block
+        block = min(block * 2, 1 << 20)
+    return None
+
+
+def level_starts(x: np.ndarray, thr: float, hyst: float, rows: int) -> list[int]:
+    """Rows where ``x`` takes a new level (module contract); ``rows`` is the minimum duration in rows."""
+    n, starts, k = len(x), [], 0
+    lo, hi = thr - hyst, thr + hyst
+    while k < n:
+        head = x[k:k + rows]
+        level = float(np.median(head[np.isfinite(head)])) if np.isfinite(head).any() else np.nan
+        if not np.isfinite(level):
+            nxt = np.flatnonzero(np.isfinite(x[k + 1:]))
+            if not len(nxt):
+                break
+            k = k + 1 + int(nxt[0])
+            continue
+        j = _departure(x, k + 1, level, lo)
+        while j is not None:
+            if abs(x[j] - level) > hi or bool(np.all(np.abs(x[j:j + rows] - level) > lo)):
+                break
+            j = _departure(x, j + 1, level, lo)
+        if j is None:
+            break
+        starts.append(j)
+        k = j
+    return starts
 
 
 def _records(t: np.ndarray, starts: np.ndarray, kinds: list[str], params: list[dict]) -> tuple[np.ndarray, list]:
@@ -49,7 +147,17 @@ def _records(t: np.ndarray, starts: np.ndarray, kinds: list[str], params: list[d
     return seg, recs
 
 
-def infer(s: dict[str, np.ndarray], moving: np.ndarray, thresholds: dict[str, float]) -> tuple[np.ndarray, list]:
+def _short_levels_dropped(t: np.ndarray, level: np.ndarray, change: np.ndarray, min_s: float) -> np.ndarray:
+    """Level starts that begin a segment of at least ``min_s``, the others dropped (merged into the one before)."""
+    starts = np.flatnonzero(change | level)
+    ends_t = np.r_[t[starts[1:]], t[-1] + (t[-1] - t[0]) / max(len(t) - 1, 1)]
+    short = (ends_t - t[starts] < min_s) & level[starts] & ~change[starts]
+    out = level.copy()
+    out[starts[short]] = False
+    return out
+
+
+def infer(s: dict[str, np.ndarray], moving: np.ndarray, settings_: dict[str, float]) -> tuple[np.ndarray, list]:
     """(segment per sample, records) inferred from the samples (module contract)."""
     t = s["t"]
     n = len(t)
@@ -57,11 +165,16 @@ def infer(s: dict[str, np.ndarray], moving: np.ndarray, thresholds: dict[str, fl
     mv = moving.astype(bool)
     change = np.zeros(n, bool)
     change[0] = True
-    hstep, lstep = np.zeros(n, bool), np.zeros(n, bool)  # a step into row k
+    hstep, lstep = np.zeros(n, bool), np.zeros(n, bool)  # a new level from row k
+    rows = _rows(t, settings_["min_s"])
     if n > 1:
         change[1:] |= mv[1:] != mv[:-1]
-        hstep[1:] = _steps(heater, thresholds["heater_V"]) if heater is not None else False
-        lstep[1:] = _steps(load, thresholds["load_N"]) if load is not None else False
+        if heater is not None:
+            hstep[level_starts(heater, settings_["heater_V"], settings_["heater_hyst_V"], rows)] = True
+            hstep = _short_levels_dropped(t, hstep, change, settings_["min_s"])
+        if load is not None:
+            lstep[level_starts(load, settings_["load_N"], settings_["load_hyst_N"], rows)] = True
+            lstep = _short_levels_dropped(t, lstep, change | hstep, settings_["min_s"])
         change |= hstep | lstep
     starts = np.flatnonzero(change)
     if len(starts) < 2:
@@ -76,10 +189,9 @@ def infer(s: dict[str, np.ndarray], moving: np.ndarray, thresholds: dict[str, fl
             p["load_N"] = float(load[a])
         if "turns" in s:
             p["turns_start"], p["turns_end"] = float(s["turns"][a]), float(s["turns"][b - 1])
-        heater_step, load_step = bool(hstep[a]), bool(lstep[a])
-        if load_step:
+        if lstep[a]:
             p["load_change"] = True
-        kinds.append("move" if mv[a] else "heater" if heater_step else "hold")
+        kinds.append("move" if mv[a] else "heater" if hstep[a] else "hold")
         params.append(p)
     return _records(t, starts, kinds, params)
 
