@@ -6,13 +6,14 @@ completed by :func:`settings`):
 * the motor moves where ``turns`` changes between rows: a Schmitt trigger on the change per
   row (moving from above ``turns`` + ``turns_hyst``, still again at or below ``turns`` -
   ``turns_hyst``; :func:`moving_from_turns`), and still spells shorter than ``min_s``
-  between moving rows are part of the move (a twist logged slower than the samples, sample-held,
-  changes only every few rows);
+  next to a move (between two moves, or at the run's start or end) are part of it (a twist
+  logged slower than the samples, sample-held, changes only every few rows);
 * ``heater_voltage`` and the declared ``load`` change level where they depart from the current
   segment's level (the median of its first ``min_s``) by more than the threshold (``heater_V``,
   ``load_N``): a departure beyond threshold + hysteresis counts at once, one within the band
   threshold +- hysteresis (a step of exactly the threshold, whatever its rounding) counts only
-  when it lasts ``min_s``, one below never; a level held less than ``min_s`` is no segment of its own;
+  when it lasts ``min_s``, one below never; a level held less than ``min_s``, or one back within
+  threshold - hysteresis of the level before it, is no segment of its own;
 * a new segment starts where the motor starts or stops and where a level changes; kinds
   ``move`` (motor moving), ``heater`` (still, heater level changed at its start), ``hold``
   (otherwise); params say it was inferred and give the levels;
@@ -82,15 +83,11 @@ def moving_from_turns(turns: np.ndarray, t: np.ndarray, s: dict[str, float]) -> 
         idx = np.where(state >= 0, np.arange(n), 0)
         np.maximum.accumulate(idx, out=idx)
         mv = state[idx] == 1
-    # close still spells shorter than min_s that lie between moving rows
-    edges = np.diff(mv.astype(np.int8))
-    gap_start = np.flatnonzero(edges == -1) + 1   # first still row after a move
-    gap_end = np.flatnonzero(edges == 1) + 1      # first moving row after a still spell
-    if len(gap_start) and len(gap_end):
-        gap_end = gap_end[gap_end > gap_start[0]]
-        k = min(len(gap_start), len(gap_end))
-        a, b = gap_start[:k], gap_end[:k]
-        short = t[b] - t[a] < s["min_s"]
+    # still spells shorter than min_s next to a move (between two, or at the run's ends) are part of it
+    if mv.any() and not mv.all():
+        d = np.diff(np.r_[0, (~mv).astype(np.int8), 0])
+        a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)    # still rows [a, b)
+        short = t[np.minimum(b, n - 1)] - t[a] < s["min_s"]
         fill = np.zeros(n + 1, np.int64)
         np.add.at(fill, a[short], 1)
         np.add.at(fill, b[short], -1)
@@ -147,14 +144,29 @@ def _records(t: np.ndarray, starts: np.ndarray, kinds: list[str], params: list[d
     return seg, recs
 
 
-def _short_levels_dropped(t: np.ndarray, level: np.ndarray, change: np.ndarray, min_s: float) -> np.ndarray:
-    """Level starts that begin a segment of at least ``min_s``, the others dropped (merged into the one before)."""
-    starts = np.flatnonzero(change | level)
-    ends_t = np.r_[t[starts[1:]], t[-1] + (t[-1] - t[0]) / max(len(t) - 1, 1)]
-    short = (ends_t - t[starts] < min_s) & level[starts] & ~change[starts]
-    out = level.copy()
-    out[starts[short]] = False
-    return out
+def _kept_levels(x: np.ndarray, t: np.ndarray, starts: list[int], edge: float, min_s: float) -> np.ndarray:
+    """Mask of the level starts kept: a level held at least ``min_s`` (until the next level starts) and not back
+    within ``edge`` of the level kept before it (a short excursion and its return are no levels)."""
+    n = len(x)
+    keep = np.zeros(n, bool)
+    if not starts:
+        return keep
+    def level(a: int, b: int) -> float:
+        v = x[a:b]
+        v = v[np.isfinite(v)]
+        return float(np.median(v)) if len(v) else np.nan
+    before = level(0, starts[0])
+    ends = starts[1:] + [n]
+    for a, b in zip(starts, ends):
+        t_end = t[b] if b < n else t[-1] + (t[-1] - t[0]) / max(n - 1, 1)
+        if t_end - t[a] < min_s:
+            continue
+        here = level(a, b)
+        if np.isfinite(before) and np.isfinite(here) and abs(here - before) <= edge:
+            continue
+        keep[a] = True
+        before = here
+    return keep
 
 
 def infer(s: dict[str, np.ndarray], moving: np.ndarray, settings_: dict[str, float]) -> tuple[np.ndarray, list]:
@@ -170,11 +182,11 @@ def infer(s: dict[str, np.ndarray], moving: np.ndarray, settings_: dict[str, flo
     if n > 1:
         change[1:] |= mv[1:] != mv[:-1]
         if heater is not None:
-            hstep[level_starts(heater, settings_["heater_V"], settings_["heater_hyst_V"], rows)] = True
-            hstep = _short_levels_dropped(t, hstep, change, settings_["min_s"])
+            thr, hyst = settings_["heater_V"], settings_["heater_hyst_V"]
+            hstep = _kept_levels(heater, t, level_starts(heater, thr, hyst, rows), thr - hyst, settings_["min_s"])
         if load is not None:
-            lstep[level_starts(load, settings_["load_N"], settings_["load_hyst_N"], rows)] = True
-            lstep = _short_levels_dropped(t, lstep, change | hstep, settings_["min_s"])
+            thr, hyst = settings_["load_N"], settings_["load_hyst_N"]
+            lstep = _kept_levels(load, t, level_starts(load, thr, hyst, rows), thr - hyst, settings_["min_s"])
         change |= hstep | lstep
     starts = np.flatnonzero(change)
     if len(starts) < 2:

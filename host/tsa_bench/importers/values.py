@@ -26,6 +26,9 @@ def converted(table: SourceTable, chosen: list[Choice]) -> dict[str, np.ndarray]
         what = f"column {table.label(c.index)} ({c.target})"
         for k, cell in col.bad:
             errors.append(f"{table.where(k)}: {what}: cannot parse '{cell}' as a number")
+        if col.bad and c.target == "t":
+            errors.append(f"{table.where()}: {what}: t must be a number of seconds (a date or clock time cannot "
+                          "be t: export elapsed seconds, or give --sample-period)")
         v = col.values
         dtype = SAMPLE_COLUMNS[c.target][0] if c.target in SAMPLE_COLUMNS else "f8"
         integer = dtype[0] in "iu"
@@ -35,10 +38,10 @@ def converted(table: SourceTable, chosen: list[Choice]) -> dict[str, np.ndarray]
         nonfinite = ~np.isfinite(v) & ~bad
         if c.target == "t" or integer:
             for k in np.flatnonzero(nonfinite)[:MAX_ERRORS]:
-                errors.append(f"{table.where(int(k))}: {what}: empty or {v[k]!r} where a finite value is required")
+                errors.append(f"{table.where(int(k))}: {what}: empty or {v[k]:g} where a finite value is required")
         else:
             for k in np.flatnonzero(np.isinf(v))[:MAX_ERRORS]:
-                errors.append(f"{table.where(int(k))}: {what}: {v[k]!r} where a finite value is required")
+                errors.append(f"{table.where(int(k))}: {what}: {v[k]:g} where a finite value is required")
         fin = np.isfinite(v)
         if integer:
             info = np.iinfo(dtype)
