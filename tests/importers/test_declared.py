@@ -29,8 +29,8 @@ def test_load_g_declares_the_hanging_load_and_fit_selects_by_it(tmp_path):
     assert res.exit_code == 0, res.output
     run = read_run(out)
     assert np.allclose(run.samples["load"], 0.2 * G0)
-    assert "load = 200.0g for every row (1.96133 N; --const)" in res.output
-    assert json.loads(run.attrs["metadata"])["constants"] == {"load": "200.0g"}
+    assert "load = 200g for every row (1.96133 N; --const)" in res.output
+    assert json.loads(run.attrs["metadata"])["constants"] == {"load": "200g"}
     fit = CliRunner().invoke(main, ["fit", "polynomial", str(out), "--load-g", "200", "--out", str(tmp_path / "m.json")])
     assert fit.exit_code == 0, fit.output
     other = CliRunner().invoke(main, ["fit", "polynomial", str(out), "--load-g", "300", "--out", str(tmp_path / "n.json")])

@@ -106,7 +106,7 @@ def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], n
         if "load" in constants:
             click.echo("error: --load-g and --const load=... both declare the load; give one", err=True)
             sys.exit(EXIT_BAD_INPUT)
-        constants["load"] = f"{load_g!r}g"
+        constants["load"] = f"{load_g:g}g"
     options = ImportOptions(mapping=_pairs(maps, "--map") if maps else None, units=_pairs(unit_opts, "--units"),
                             meta=meta, sample_period_s=sample_period_s, no_header=no_header, delimiter=delimiter,
                             decimal=decimal, sheet=sheet, var=var, group=group, time_order=time_order,

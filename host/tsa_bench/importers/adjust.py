@@ -6,7 +6,9 @@ Contract:
 * :func:`constants` turns ``--const NAME=VALUE[UNIT]`` (and ``--load-g G``, ``load=Gg``) into
   {target: (value in the target's stored unit, stored unit, what was given)}; a target that a
   source column already fills is refused (one source per column).
-* :func:`apply` applies ``--negate``, ``--scale`` and ``--offset`` to the converted values, in
+* :func:`keyed` names the columns ``--scale``, ``--offset`` and ``--negate`` act on (a run-file
+  column, or a source column by its name) and refuses others; :func:`apply` applies them to
+  the converted values, in
   that order: ``stored = offset + scale x (-1 if negated) x value``; scale and offset are in
   the stored unit (an offset may carry a unit of its own dimension, ``--offset length=25cm``).
   A scale with a unit (``--scale length=2.5mm/V``) is a calibration: it is applied by
@@ -72,13 +74,32 @@ def constants(pairs: dict[str, str], taken: set[str]) -> dict[str, tuple[float, 
     return out
 
 
-def resolve_key(key: str, targets: list[str], names: dict[str, str], option: str) -> str:
-    """The run-file column ``key`` names: a target, or a source column's name (``names`` {name: target})."""
-    if key in targets:
-        return key
-    if key in names:
-        return names[key]
-    raise ImportFileError(f"{option} {key}: no such column among the imported ones ({', '.join(targets)})")
+def scales(pairs: dict[str, str]) -> tuple[dict[str, float], dict[str, str]]:
+    """({column: factor}, {column: unit of a calibration}) of ``--scale COLUMN=F[UNIT]``."""
+    factors, calibrations = {}, {}
+    for key, text in pairs.items():
+        factors[key], unit = quantity(text, f"--scale {key}")
+        if unit:
+            calibrations[key] = unit
+    return factors, calibrations
+
+
+def keyed(scale: dict[str, str], offset: dict[str, str], negate: list[str], targets: list[str],
+          names: dict[str, str]) -> tuple[dict[str, float], dict[str, str], dict[str, tuple[float, str]], set[str]]:
+    """(factors, calibrations, offsets, negated) keyed by run-file column: a key is one of ``targets`` or a
+    source column's name (``names`` {name: target}); anything else is refused naming the columns."""
+    def key(k: str, option: str) -> str:
+        if k in targets:
+            return k
+        if k in names:
+            return names[k]
+        raise ImportFileError(f"{option} {k}: no such column among the imported ones ({', '.join(targets)})")
+
+    factors, calibrations = scales(scale)
+    return ({key(k, "--scale"): f for k, f in factors.items()},
+            {key(k, "--scale"): u for k, u in calibrations.items()},
+            {key(k, "--offset"): quantity(v, f"--offset {k}") for k, v in offset.items()},
+            {key(k, "--negate") for k in negate})
 
 
 def apply(data: dict[str, np.ndarray], units: dict[str, str], scale: dict[str, float],

@@ -28,7 +28,8 @@ from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.importers.headers import guess_target, name_unit, same_unit, split_header, suffix_unit
 from tsa_bench.importers.table import SourceTable
 from tsa_bench.runner.documents import SAMPLE_COLUMNS
-from tsa_bench.units import CHANNELS, DIMENSIONS, AmbiguousUnitError, UnitError, channel_conversion, multiply, parse_unit, units_of
+from tsa_bench.units import (CHANNELS, DIMENSIONS, AmbiguousUnitError, UnitError, channel_conversion, multiply,
+                             parse_unit, units_of)
 
 EXTRA_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
 #: names labs give a time column (lower case, unit removed), taken as t when nothing else is

@@ -29,7 +29,7 @@ from tsa_bench.importers import adjust, clock, segments as segs
 from tsa_bench.importers.columns import Choice, resolve, units_for
 from tsa_bench.importers.detect import read_source
 from tsa_bench.importers.errors import ImportFileError
-from tsa_bench.importers.headers import same_unit
+from tsa_bench.importers.headers import same_unit, split_header
 from tsa_bench.importers.values import converted
 from tsa_bench.importers.writer import fill, start_record, write_run
 from tsa_bench.runner.documents import SAMPLE_COLUMNS
@@ -101,38 +101,7 @@ def _describe(table: Any, chosen: list[Choice], left: dict[int, str]) -> list[st
     return out
 
 
-def _scales(o: ImportOptions) -> tuple[dict[str, float], dict[str, str]]:
-    """({column: factor}, {column: unit of a calibration}) from ``--scale``."""
-    factors, calibrations = {}, {}
-    for key, text in o.scale.items():
-        f, unit = adjust.quantity(text, f"--scale {key}")
-        factors[key] = f
-        if unit:
-            calibrations[key] = unit
-    return factors, calibrations
-
-
-def _keys(table: Any, chosen: list[Choice], consts: dict[str, Any], o: ImportOptions,
-          factors: dict[str, float], calibrations: dict[str, str]) -> tuple[dict, dict, dict, set]:
-    """--scale/--offset/--negate keyed by run-file column (a source column's name also names its target)."""
-    from tsa_bench.importers.headers import split_header
-
-    targets = [c.target for c in chosen] + list(consts)
-    names = {}
-    for c in chosen:
-        raw = table.names[c.index]
-        names.update({raw: c.target, split_header(raw)[0]: c.target} if raw else {})
-
-    def key(k: str, option: str) -> str:
-        return adjust.resolve_key(k, targets, names, option)
-
-    offsets = {key(k, "--offset"): adjust.quantity(v, f"--offset {k}") for k, v in o.offset.items()}
-    negate = {key(k, "--negate") for k in o.negate}
-    return ({key(k, "--scale"): f for k, f in factors.items()},
-            {key(k, "--scale"): u for k, u in calibrations.items()}, offsets, negate)
-
-
-def _segments(o: ImportOptions, seg_mode: str, seg_index: int | None, seg_values: Any, table: Any,
+def _segments(seg_mode: str, seg_index: int | None, seg_values: Any, table: Any,
               data: dict[str, np.ndarray], samples: dict[str, np.ndarray], thr: dict[str, float]
               ) -> tuple[list, dict[str, Any], list[str]]:
     """(records, metadata, summary lines) of the segments (module contract); fills samples["segment"]."""
@@ -186,7 +155,7 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
         thr = segs.settings(o.thresholds)
     except ValueError as exc:
         raise ImportFileError(f"--segment-threshold: {exc}") from None
-    factors, calibrations = _scales(o)
+    adjust.scales(o.scale)   # a malformed --scale is named before the file is read
     table = read_source(src, o)
     if table.n_rows == 0:
         raise ImportFileError(f"{table.path}: no data rows" + (" after the header" if table.has_header else ""))
@@ -196,7 +165,9 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
     if not any(c.target != "t" for c in chosen):
         raise _no_measured_column(table, chosen, left)
     consts = adjust.constants(o.constants, {c.target for c in chosen})
-    factors, calibrations, offsets, negate = _keys(table, chosen, consts, o, factors, calibrations)
+    names = {n: c.target for c in chosen for n in (table.names[c.index], split_header(table.names[c.index])[0]) if n}
+    factors, calibrations, offsets, negate = adjust.keyed(o.scale, o.offset, o.negate,
+                                                          [c.target for c in chosen] + list(consts), names)
     units_for(table, chosen, o.units, {k: (factors[k], u) for k, u in calibrations.items()})
     data = converted(table, chosen)
     lines = [f"read {src} as {table.fmt}"] + [f"  {note}" for note in table.notes]
@@ -218,8 +189,7 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
             lines.append("  t from the file's waveform timing (wf_increment)")
         tcol = next((f"{table.label(c.index)}" for c in chosen if c.target == "t"), "'waveform time'")
         keep, order = clock.order_rows(data["t"], o.time_order, table.where, tcol)
-    reordered = len(keep) != n0 or bool((np.diff(keep) != 1).any())
-    if reordered:  # sorted rows are stored sorted: every column, in the order kept
+    if order["rows_affected"]:  # sorted rows are stored sorted (not only counted): every column, in the order kept
         data = {k: v[keep] for k, v in data.items()}
     if order.get("said"):
         lines.append(f"time order: {order['said']}")
@@ -236,7 +206,7 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
     samples = fill(data, n)
     if "motor_moving" not in data and "turns" in data:
         samples["motor_moving"] = segs.moving_from_turns(samples["turns"], samples["t"], thr)
-    records, seg_meta, seg_lines = _segments(o, seg_mode, seg_index, seg_values, table, data, samples, thr)
+    records, seg_meta, seg_lines = _segments(seg_mode, seg_index, seg_values, table, data, samples, thr)
     lines += seg_lines
     t0, t1 = float(samples["t"][0]), float(samples["t"][-1])
     metadata: dict[str, Any] = {**o.meta, "imported_from": str(src), "source_format": table.fmt,

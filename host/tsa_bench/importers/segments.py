@@ -113,8 +113,7 @@ def level_starts(x: np.ndarray, thr: float, hyst: float, rows: int) -> list[int]
     n, starts, k = len(x), [], 0
     lo, hi = thr - hyst, thr + hyst
     while k < n:
-        head = x[k:k + rows]
-        level = float(np.median(head[np.isfinite(head)])) if np.isfinite(head).any() else np.nan
+        level = _level(x[k:k + rows])
         if not np.isfinite(level):
             nxt = np.flatnonzero(np.isfinite(x[k + 1:]))
             if not len(nxt):
@@ -144,6 +143,12 @@ def _records(t: np.ndarray, starts: np.ndarray, kinds: list[str], params: list[d
     return seg, recs
 
 
+def _level(v: np.ndarray) -> float:
+    """The median of the finite values (NaN when there are none)."""
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if len(v) else np.nan
+
+
 def _kept_levels(x: np.ndarray, t: np.ndarray, starts: list[int], edge: float, min_s: float) -> np.ndarray:
     """Mask of the level starts kept: a level held at least ``min_s`` (until the next level starts) and not back
     within ``edge`` of the level kept before it (a short excursion and its return are no levels)."""
@@ -151,17 +156,13 @@ def _kept_levels(x: np.ndarray, t: np.ndarray, starts: list[int], edge: float, m
     keep = np.zeros(n, bool)
     if not starts:
         return keep
-    def level(a: int, b: int) -> float:
-        v = x[a:b]
-        v = v[np.isfinite(v)]
-        return float(np.median(v)) if len(v) else np.nan
-    before = level(0, starts[0])
+    before = _level(x[:starts[0]])
     ends = starts[1:] + [n]
     for a, b in zip(starts, ends):
         t_end = t[b] if b < n else t[-1] + (t[-1] - t[0]) / max(n - 1, 1)
         if t_end - t[a] < min_s:
             continue
-        here = level(a, b)
+        here = _level(x[a:b])
         if np.isfinite(before) and np.isfinite(here) and abs(here - before) <= edge:
             continue
         keep[a] = True

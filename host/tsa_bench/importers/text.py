@@ -149,7 +149,7 @@ def _arrow(body: memoryview, delim: str, decimal_comma: bool, width: int, cols: 
     try:
         table = pc.read_csv(
             pa.py_buffer(body),
-            read_options=pc.ReadOptions(column_names=names, use_threads=False, block_size=1 << 24),
+            read_options=pc.ReadOptions(column_names=names, use_threads=False, block_size=len(body) + 1),
             parse_options=pc.ParseOptions(delimiter=delim, quote_char='"', double_quote=True,
                                           newlines_in_values=False, ignore_empty_lines=False),
             convert_options=pc.ConvertOptions(column_types={names[i]: pa.float64() for i in cols},
@@ -157,7 +157,7 @@ def _arrow(body: memoryview, delim: str, decimal_comma: bool, width: int, cols: 
                                               strings_can_be_null=True, quoted_strings_can_be_null=True,
                                               decimal_point="," if decimal_comma else "."))
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError, ValueError):
-        return None
+        return None   # the careful path names what pyarrow refused
     out = []
     for name in [names[i] for i in cols]:
         out.append(_floats(table.column(name)))
@@ -169,6 +169,9 @@ def _arrow(body: memoryview, delim: str, decimal_comma: bool, width: int, cols: 
 
 def _floats(col: "pa.ChunkedArray") -> np.ndarray:  # noqa: F821
     """A float64 Arrow column as numpy, nulls as NaN, read from its buffers (Array.to_numpy would import pandas)."""
+    if col.num_chunks == 1 and col.null_count == 0:   # one block (the whole body): numpy views its buffer
+        ch = col.chunk(0)
+        return np.frombuffer(ch.buffers()[1], np.float64, count=len(ch), offset=ch.offset * 8)
     out = np.empty(len(col), np.float64)
     pos = 0
     for ch in col.chunks:
@@ -268,7 +271,7 @@ def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
             else:
                 vals, bad, n_bad = numbers([c[i] for c in probe])
                 columns.append(Column(names[i], np.full(n, np.nan), bad, max(n_bad, 1)))
-        return SourceTable(path, "text", columns, np.arange(start + 1, start + 1 + n), header_line,
+        return SourceTable(path, "text", columns, range(start + 1, start + 1 + n), header_line,
                            header is not None, notes)
     if raw.isascii() and delim != " ":
         text, _, _ = decode(raw)

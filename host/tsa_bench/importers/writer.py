@@ -34,22 +34,31 @@ IMPORT_COMPRESSION = 1
 
 
 def fill(data: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
-    """All contract columns, in their dtypes, from ``data`` (module contract)."""
+    """All contract columns, in their dtypes, from ``data`` (module contract). A column the source lacks
+    and that holds one value is a read-only broadcast of it (no memory; :func:`write_run` writes nothing)."""
     out: dict[str, np.ndarray] = {}
     for name, (dtype, _) in SAMPLE_COLUMNS.items():
         if name in data:
             out[name] = data[name].astype(dtype, copy=False)
-        elif dtype == "f8":
-            out[name] = np.full(n, np.nan)
-        elif name == "segment":
-            out[name] = np.full(n, -1, dtype=dtype)
         elif name == "counter":
             out[name] = np.arange(n, dtype=dtype)
         else:
-            out[name] = np.zeros(n, dtype=dtype)
+            value = np.nan if dtype == "f8" else -1 if name == "segment" else 0
+            out[name] = np.broadcast_to(np.asarray(value, dtype=dtype), (n,))
     if "adc_flags" not in data:
-        out["adc_flags"] = (np.isnan(out["resistance"]) * 4 + np.isnan(out["length"]) * 8).astype("u1")
+        flags = np.zeros(n, "u1")
+        flags[np.isnan(out["resistance"])] |= 4
+        flags[np.isnan(out["length"])] |= 8
+        out["adc_flags"] = flags
     return out
+
+
+def _only_fill(values: np.ndarray, fill: Any) -> bool:
+    """Whether every value is the dataset's fill value (NaN matching NaN); one comparison for a broadcast."""
+    v = values[:1] if values.strides == (0,) else values
+    if isinstance(fill, float) or getattr(fill, "dtype", np.dtype("i1")).kind == "f":
+        return bool(np.isnan(fill) and np.isnan(v).all() or (v == fill).all())
+    return bool((v == fill).all())
 
 
 def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras: dict[str, tuple[np.ndarray, str]],
@@ -70,11 +79,7 @@ def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras
             for name, values in {**samples, **{k: v for k, (v, _) in extras.items()}}.items():
                 ds = g[name]
                 ds.resize((n,))
-                fill = ds.fillvalue
-                if np.isnan(fill) if ds.dtype.kind == "f" else False:
-                    if np.isnan(values).all():
-                        continue
-                elif not (values != fill).any():
+                if _only_fill(values, ds.fillvalue):
                     continue
                 ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
     return out

@@ -130,10 +130,14 @@ def load_mask(run: RunData, load_g: float | None) -> np.ndarray:
     return mask
 
 
-def _listed(values: list[float], unit: str, most: int = 8) -> str:
-    """``1 g, 2 g, ... 9 g (2,265 in all)``: a list short enough for one line."""
-    shown = ", ".join(f"{v:g} {unit}" for v in values[:most])
-    return shown if len(values) <= most else f"{shown}, ... {values[-1]:g} {unit} ({len(values):,} in all)"
+def _listed(values: list[float], unit: str, each: bool = True, most: int = 8) -> str:
+    """``100 g, 110 g, ... 390 g (30 in all)`` (or with ``each`` False ``100, 110, ... 390 g (30 in all)``):
+    a list short enough for one line."""
+    shown = [f"{v:g}" + (f" {unit}" if each else "") for v in values]
+    if len(values) > most:
+        shown = shown[:most - 1] + [f"... {shown[-1]}"]
+    text = ", ".join(shown) + ("" if each else f" {unit}")
+    return text + (f" ({len(values):,} in all)" if len(values) > most else "")
 
 
 def measured_force_note(run: RunData) -> str | None:
@@ -402,7 +406,7 @@ def fit_notes(saved: SavedModel, runs: list[RunData]) -> list[str]:
         elif load_g is None and not uses_whole_run(r):
             loads = loads_g(r, quasi_static_mask(r, io_in))
             if len(loads) > 1:
-                notes.append(f"{r.path} holds samples at {len(loads):,} loads ({_listed(loads, 'g')}); "
+                notes.append(f"{r.path} holds samples at {len(loads):,} loads ({_listed(loads, 'g', each=False)}); "
                              "one model was fitted across them. The thesis fits one per load: --load-g")
         note = _percent_note(r, saved.output["column"], mask)
         if note:
