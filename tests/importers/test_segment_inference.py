@@ -65,6 +65,7 @@ def test_spikes_on_the_threshold_edge_open_no_segment_but_a_held_step_does(tmp_p
     n = 400
     v = np.full(n, 1.0) + rng.uniform(-0.015, 0.015, n)      # noise well inside the band
     v[[50, 120, 121, 300]] += 0.05                           # one- and two-row spikes of exactly the threshold
+    v[[80, 250]] += 0.3                                      # and two far beyond it
     v[200:] += 0.2                                           # one real step, held
     text = "t [s],heater_voltage [V],length [mm]\n" + "".join(f"{k * 0.1:.1f},{x:.4f},100\n" for k, x in enumerate(v))
     res, out = run_import(tmp_path, text)
@@ -72,6 +73,16 @@ def test_spikes_on_the_threshold_edge_open_no_segment_but_a_held_step_does(tmp_p
     run = read_run(out)
     assert list(run.segments["kind"].astype(str)) == ["hold", "heater"]
     assert np.isclose(run.segments["t_start"][1], 20.0)
+
+
+def test_a_level_passed_through_in_less_than_the_minimum_duration_is_no_segment(tmp_path):
+    volts = [0.0] * 30 + [1.0] * 2 + [2.0] * 30            # 1 V for 0.2 s on the way from 0 to 2 V
+    text = "t [s],heater_voltage [V],length [mm]\n" + "".join(f"{k * 0.1:.1f},{v:g},100\n" for k, v in enumerate(volts))
+    res, out = run_import(tmp_path, text)
+    assert res.exit_code == 0, res.output
+    run = read_run(out)
+    assert list(run.segments["kind"].astype(str)) == ["hold", "heater"]
+    assert np.isclose(run.segments["t_start"][1], 3.2)       # the 2 V level; the 1 V rows stay with the 0 V hold
 
 
 def test_the_settings_are_overridable_checked_and_stored(tmp_path):
@@ -101,3 +112,22 @@ def test_a_heater_run_without_twist_fits_on_its_heater_segments(tmp_path):
     assert "has no finite samples" not in fit.output
     n = json.loads((tmp_path / "m.json").read_text())["metrics"]["identification"][str(out)]["n"]
     assert 0.25 * 440 < n < 0.5 * 440                         # the last third of each heater segment
+
+
+def test_a_noisy_measured_twist_keeps_its_state_inside_the_hysteresis_band(tmp_path):
+    """A measured (noisy) twist: holds jitter by up to 0.008 turn per row, moves slow down to 0.008 turn per row
+    every third row. Threshold 0.01 with hysteresis 0.005 (moving above 0.015, still at or below 0.005)
+    keeps each move whole; min_s=0 so that only the hysteresis decides."""
+    rng = np.random.default_rng(5)
+    pos, turns = 0.0, []
+    for move in range(4):
+        turns += list(pos + rng.uniform(-0.004, 0.004, 30))                     # hold
+        for k in range(30):
+            pos += 0.008 if k % 3 == 2 else 0.05
+            turns.append(pos)
+    turns += list(pos + rng.uniform(-0.004, 0.004, 30))
+    text = "t [s],turns [turn],length [mm]\n" + "".join(f"{k * 0.1:.1f},{v:.5f},100\n" for k, v in enumerate(turns))
+    res, out = run_import(tmp_path, text, "--segment-threshold", "turns=0.01,turns_hyst=0.005,min_s=0")
+    assert res.exit_code == 0, res.output
+    kinds = list(read_run(out).segments["kind"].astype(str))
+    assert kinds.count("move") == 4 and kinds.count("hold") == 5

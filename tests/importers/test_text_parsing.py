@@ -62,8 +62,9 @@ def test_bad_rows_are_named_by_line_after_pyarrow_refused_them(tmp_path, paths):
     assert res.exit_code == 2 and "lab.csv:4: column 'length [mm]' (length): cannot parse 'x' as a number" in res.output
 
 
-def test_blank_and_comment_lines_among_the_data_keep_their_line_numbers(tmp_path, paths):
-    body = "t [s],length [mm]\n0,100\n0.1,101\n\n# paused\n0.2,102\n0.15,103\n"
+@pytest.mark.parametrize("pause", ["\n# paused\n", "\n\n"])
+def test_blank_and_comment_lines_among_the_data_keep_their_line_numbers(tmp_path, paths, pause):
+    body = f"t [s],length [mm]\n0,100\n0.1,101\n{pause}0.2,102\n0.15,103\n"
     res, out = run_import(tmp_path, body)
     assert res.exit_code == 2 and "lab.csv:7: column 't [s]' (t): time 0.15 s is not after 0.2 s on line 6" in res.output
     res, out = run_import(tmp_path, body.replace("0.15,103", "0.3,103"), out="b.h5")

@@ -8,12 +8,13 @@ completed by :func:`settings`):
   ``turns_hyst``; :func:`moving_from_turns`), and still spells shorter than ``min_s``
   next to a move (between two moves, or at the run's start or end) are part of it (a twist
   logged slower than the samples, sample-held, changes only every few rows);
-* ``heater_voltage`` and the declared ``load`` change level where they depart from the current
-  segment's level (the median of its first ``min_s``) by more than the threshold (``heater_V``,
-  ``load_N``): a departure beyond threshold + hysteresis counts at once, one within the band
-  threshold +- hysteresis (a step of exactly the threshold, whatever its rounding) counts only
-  when it lasts ``min_s``, one below never; a level held less than ``min_s``, or one back within
-  threshold - hysteresis of the level before it, is no segment of its own;
+* ``heater_voltage`` and the declared ``load`` change level with hysteresis: the level held (the
+  median of the segment's first ``min_s``) moves only where the value departs from it by more
+  than the threshold less its hysteresis (``heater_V`` - ``heater_hyst_V``, ``load_N`` -
+  ``load_hyst_N``), so a step of exactly the threshold counts whatever its rounding and values
+  wandering around a level never toggle it; a new level must hold ``min_s`` and differ from the
+  level before it by as much, else it is no segment of its own (a short excursion and its
+  return are merged into the segment before);
 * a new segment starts where the motor starts or stops and where a level changes; kinds
   ``move`` (motor moving), ``heater`` (still, heater level changed at its start), ``hold``
   (otherwise); params say it was inferred and give the levels;
@@ -109,9 +110,9 @@ def _departure(x: np.ndarray, start: int, level: float, edge: float) -> int | No
 
 
 def level_starts(x: np.ndarray, thr: float, hyst: float, rows: int) -> list[int]:
-    """Rows where ``x`` takes a new level (module contract); ``rows`` is the minimum duration in rows."""
+    """Rows where ``x`` departs from the level held by more than ``thr`` - ``hyst`` (module contract);
+    ``rows`` is the minimum duration in rows, over which a new level's median is taken."""
     n, starts, k = len(x), [], 0
-    lo, hi = thr - hyst, thr + hyst
     while k < n:
         level = _level(x[k:k + rows])
         if not np.isfinite(level):
@@ -120,11 +121,7 @@ def level_starts(x: np.ndarray, thr: float, hyst: float, rows: int) -> list[int]
                 break
             k = k + 1 + int(nxt[0])
             continue
-        j = _departure(x, k + 1, level, lo)
-        while j is not None:
-            if abs(x[j] - level) > hi or bool(np.all(np.abs(x[j:j + rows] - level) > lo)):
-                break
-            j = _departure(x, j + 1, level, lo)
+        j = _departure(x, k + 1, level, thr - hyst)
         if j is None:
             break
         starts.append(j)
