@@ -45,11 +45,11 @@ _MICRO = "u\u00b5\u03bc"
 _BASES: dict[str, list[tuple[tuple[str, ...], float, float, str]]] = {
     "dimensionless": [(("1",), 1.0, 0.0, ""), (("%",), 0.01, 0.0, ""), (("ppm",), 1e-6, 0.0, ""),
                       (("strain",), 1.0, 0.0, _MICRO)],
-    "time": [(("s",), 1.0, 0.0, "m" + _MICRO + "n"), (("min",), 60.0, 0.0, ""), (("h",), 3600.0, 0.0, "")],
+    "time": [(("s",), 1.0, 0.0, "m" + _MICRO), (("min",), 60.0, 0.0, ""), (("h",), 3600.0, 0.0, "")],
     # twist and angles are one dimension: a motor turn is 360 degrees
     "angle": [(("turn", "turns", "rev", "rotation"), 1.0, 0.0, ""), (("deg", "\u00b0"), 1.0 / 360.0, 0.0, ""),
               (("rad",), 1.0 / (2.0 * math.pi), 0.0, "m")],
-    "length": [(("m",), 1000.0, 0.0, "kcm" + _MICRO + "n"), (("in",), 25.4, 0.0, "")],
+    "length": [(("m",), 1000.0, 0.0, "cm" + _MICRO + "n"), (("in",), 25.4, 0.0, "")],
     "resistance": [(("ohm", "Ohm", "\u03a9", "\u2126"), 1.0, 0.0, "GMkm" + _MICRO)],
     "voltage": [(("V",), 1.0, 0.0, "Mkm" + _MICRO)],
     "current": [(("A",), 1.0, 0.0, "km" + _MICRO + "n")],

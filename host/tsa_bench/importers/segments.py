@@ -6,8 +6,8 @@ completed by :func:`settings`):
 * the motor moves where ``turns`` changes between rows: a Schmitt trigger on the change per
   row (moving from above ``turns`` + ``turns_hyst``, still again at or below ``turns`` -
   ``turns_hyst``; :func:`moving_from_turns`), and still spells shorter than ``min_s``
-  next to a move (between two moves, or at the run's start or end) are part of it (a twist
-  logged slower than the samples, sample-held, changes only every few rows);
+  between two moving rows are part of the move (a twist logged slower than the samples,
+  sample-held, changes only every few rows); at the run's start and end the motor stays still;
 * ``heater_voltage`` and the declared ``load`` change level with hysteresis: the level held (the
   median of the segment's first ``min_s``) moves only where the value departs from it by more
   than the threshold less its hysteresis (``heater_V`` - ``heater_hyst_V``, ``load_N`` -
@@ -84,11 +84,14 @@ def moving_from_turns(turns: np.ndarray, t: np.ndarray, s: dict[str, float]) -> 
         idx = np.where(state >= 0, np.arange(n), 0)
         np.maximum.accumulate(idx, out=idx)
         mv = state[idx] == 1
-    # still spells shorter than min_s next to a move (between two, or at the run's ends) are part of it
-    if mv.any() and not mv.all():
-        d = np.diff(np.r_[0, (~mv).astype(np.int8), 0])
-        a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)    # still rows [a, b)
-        short = t[np.minimum(b, n - 1)] - t[a] < s["min_s"]
+    # still spells shorter than min_s between two moving rows are part of the move (at the run's ends the
+    # data say the motor stood still: those stay still)
+    d = np.diff(np.r_[0, (~mv).astype(np.int8), 0])
+    a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)    # still rows [a, b)
+    inner = (a > 0) & (b < n)
+    a, b = a[inner], b[inner]
+    short = t[b] - t[a] < s["min_s"]
+    if short.any():
         fill = np.zeros(n + 1, np.int64)
         np.add.at(fill, a[short], 1)
         np.add.at(fill, b[short], -1)
