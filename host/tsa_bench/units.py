@@ -39,6 +39,8 @@ PREFIXES: dict[str, float] = {"G": 1e9, "M": 1e6, "k": 1e3, "h": 1e2, "c": 1e-2,
 PREFIX_NAMES = {"G": "giga", "M": "mega", "k": "kilo", "h": "hecto", "c": "centi", "m": "milli", "u": "micro",
                 "\u00b5": "micro", "\u03bc": "micro", "n": "nano"}
 _MICRO = "u\u00b5\u03bc"
+#: The weight of one gram under standard gravity, N (a hanging mass in g -> the load in N).
+G_N_PER_G = 9.80665e-3
 
 #: dimension -> [(spellings of one unit, factor to the dimension's base unit, offset, prefixes it takes)];
 #: the first spelling of the first entry is the base. Prefixed spellings are made from these.

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from tsa_bench.importers.errors import ImportFileError
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.units import CHANNELS, UnitError, channel_conversion, parse_unit
 
 #: a resistance below this (ohm) is less than the leads to the string: not a string's resistance

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tsa_bench.runner.documents import SegmentRecord
+from tsa_bench.rundocs import SegmentRecord
 
 #: thresholds (turn, V, N), their hysteresis (None: a fifth of the threshold) and the minimum duration (s)
 DEFAULTS: dict[str, float | None] = {"turns": 0.0, "heater_V": 0.05, "load_N": 0.05, "turns_hyst": None,
