@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import re
+import unicodedata
 from dataclasses import dataclass
 
 #: SI prefixes, exact case: ``M`` is mega and ``m`` milli, never folded into each other
@@ -248,12 +249,12 @@ def multiply(a: Unit, b: Unit) -> Unit:
 
 
 def units_of(dimension: str) -> list[str]:
-    """The simple units of ``dimension`` for messages: base unit first, then each unit in its
-    first spelling and with the ASCII prefixes it takes, in their exact case (``kohm``, ``Mohm``)."""
+    """The simple units of ``dimension`` for messages: base unit first, then each unit in all its
+    spellings and with the ASCII prefixes it takes, in their exact case (``kohm``, ``Mohm``)."""
     out = [_BASE_UNIT[dimension]]
     for spellings, _, _, prefixes in _BASES[dimension]:
-        out += [p + spellings[0] for p in " " + prefixes if p not in "\u00b5\u03bc"]
-    return list(dict.fromkeys(u.strip() for u in out))
+        out += list(spellings) + [p + spellings[0] for p in prefixes if p not in "\u00b5\u03bc"]
+    return list(dict.fromkeys(unicodedata.normalize("NFKC", u) for u in out))  # the ohm sign is shown as omega
 
 
 def convert(value: float, from_unit: str, to_unit: str) -> float:
