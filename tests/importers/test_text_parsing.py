@@ -77,6 +77,7 @@ def test_blank_and_comment_lines_among_the_data_keep_their_line_numbers(tmp_path
     ('"t [s]","length [mm]"\n"0","1"\n"0.1","2"\n', ()),                            # every cell quoted
     ("t [s],length [mm],R [ohm]\n0,1,nan\n0.1,2,inf\n0.2,3,NaN\n", ()),             # nan and inf spelled out
     ("\ufeffstatus,t [s],length [mm]\r\nok,0,1\r\n# note,5,6\r\nok,0.1,2\r\n", ()),    # BOM, CRLF, a comment
+    ("status,t [s],length [mm]\nok,0,1\n  // note,5,6\n ok,0.1,2\n", ()),              # an indented comment
     ("t [s],length [mm]\r0,1\r0.1,2\r0.2,3\r", ()),                                  # bare CR line ends
 ])
 def test_pyarrow_and_the_line_by_line_reader_agree(tmp_path, monkeypatch, body, args):

@@ -133,17 +133,29 @@ def layout(records: list[tuple[int, list[str]]], no_header: bool, decimal_comma:
     return first + 1, [c.strip() for c in cells], width, notes
 
 
-def _arrow(body: memoryview, delim: str, decimal_comma: bool, width: int, cols: list[int]) -> list[np.ndarray] | None:
-    """The numeric columns ``cols`` of the data lines parsed by pyarrow's CSV reader, or None when the
+def _comment_lines(raw: bytes, start: int) -> bool:
+    """Whether a line from byte ``start`` on is a comment (``#``, ``%``, ``//``, maybe indented); fast
+    byte searches first, the regular expression only for a file with indented lines."""
+    if raw.startswith((b"#", b"%", b"//"), start) or any(raw.find(s, start) >= 0 for s in (b"\n#", b"\n%", b"\n//")):
+        return True
+    indented = raw.find(b"\n ", start) >= 0 or raw.find(b"\n\t", start) >= 0 or raw.startswith((b" ", b"\t"), start)
+    return indented and _COMMENT_LINE.search(raw, start) is not None
+
+
+def _arrow(raw: bytes, start: int, delim: str, decimal_comma: bool, width: int,
+           cols: list[int]) -> list[np.ndarray] | None:
+    """The numeric columns ``cols`` of the data lines (``raw`` from byte ``start``) parsed by pyarrow's CSV
+    reader, or None when the
     text needs the careful path (module contract): pyarrow refused it (a comment line among the data
     fails a number column's conversion), or it holds blank lines, which pyarrow reads as rows of empty
     cells where the careful path skips them."""
     import pyarrow as pa
     import pyarrow.csv as pc
 
+    body = memoryview(raw)[start:]
     if not cols or not body or bytes(body[:1 << 16]).isspace() and bytes(body).isspace():
         return None
-    if len(cols) < width and _COMMENT_LINE.search(body):
+    if len(cols) < width and _comment_lines(raw, start):
         return None  # a comment line fails a number column's conversion, but not when only others are read
     names = [f"c{i}" for i in range(width)]
     try:
@@ -261,7 +273,7 @@ def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
         block = _blank_separated(data, width) if len(numeric) == width else None
         fast = [block[:, i] for i in range(width)] if block is not None else None
     elif utf8:
-        fast = _arrow(memoryview(raw)[len(text[:at].encode("utf-8")):], delim, decimal_comma, width, numeric)
+        fast = _arrow(raw, len(text[:at].encode("utf-8")), delim, decimal_comma, width, numeric)
     if fast is not None:
         n = len(fast[0])
         columns = []
