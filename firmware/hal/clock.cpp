@@ -35,6 +35,13 @@ uint64_t micros() {
     return base + (t >> 1);
 }
 
+uint32_t micros32_locked() {
+    uint32_t base = static_cast<uint32_t>(g_us_base);
+    const uint16_t t = TCNT3;
+    if ((TIFR3 & (1 << TOV3)) && t < 0x8000) base += US_PER_OVERFLOW;
+    return base + (t >> 1);
+}
+
 uint16_t ticks16() { return TCNT3; }  // no ISR touches Timer3's 16-bit registers
 
 void delay_us(uint8_t us) {

@@ -11,6 +11,8 @@ namespace hal {
 
 void clock_init();
 uint64_t micros();
+// The low 32 bits of micros(), for an ISR (interrupts masked; wraps every 71.6 min).
+uint32_t micros32_locked();
 // Timer3's raw count (2 MHz, wraps every 32.8 ms): a cheap clock for short bounded waits.
 uint16_t ticks16();
 void delay_us(uint8_t us);

@@ -1,6 +1,6 @@
 // I2C (TWI) master, 400 kHz, with bus recovery.
 //
-// Contract. Blocking, but every wait is bounded (TWI_TIMEOUT_US per bus event): a stuck
+// Contract. Blocking (but for the interrupt-driven 2-byte read below), but every wait is bounded (TWI_TIMEOUT_US per bus event): a stuck
 // or absent device returns false and never hangs the main loop. A write sends
 // address + bytes + STOP; a read sends address(R), receives n bytes (ACK all but the
 // last) + STOP. A NACK fails the transfer (STOP, peripheral reset). A time-out, a bus
@@ -22,5 +22,19 @@ void twi_init();
 bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n);
 bool twi_read(uint8_t address7, uint8_t* data, uint8_t n);
 uint16_t twi_recoveries();  // since boot, saturating
+
+// Interrupt-driven read of two bytes (address(R), two bytes, STOP), started from an ISR
+// (interrupts masked): the TWI interrupt moves it on and stores the bytes in out[0..1],
+// then *status = TWI_ASYNC_OK, or TWI_ASYNC_FAILED on a NACK or bus error. false (and
+// nothing started) while another transfer runs. The blocking functions above wait for
+// a running read to end first (or abort it after TWI_TIMEOUT_US). twi_async_service()
+// (main loop) aborts a read the bus held longer than TWI_TIMEOUT_US and recovers the
+// bus after a bus error, as the blocking functions do.
+static const uint8_t TWI_ASYNC_PENDING = 0;
+static const uint8_t TWI_ASYNC_OK = 1;
+static const uint8_t TWI_ASYNC_FAILED = 2;
+bool twi_async_read2(uint8_t address7, volatile uint8_t* out, volatile uint8_t* status);
+bool twi_async_busy();
+void twi_async_service();
 
 }  // namespace hal
