@@ -103,7 +103,8 @@ bool AvrBoard::position_take(fw::ConvSample& s) {
 }
 
 uint32_t AvrBoard::position_edges(uint64_t& last_us) {
-    uint32_t edges, last;
+    uint16_t edges;
+    uint32_t last;
     hal::ads_stream_edges(edges, last);
     const uint64_t now = hal::micros();
     last_us = now - static_cast<uint32_t>(static_cast<uint32_t>(now) - last);

@@ -134,7 +134,6 @@ void Device::read_serial(uint64_t now) {
             ++frames;
             handle_frame(now, parser_.msg_id(), parser_.seq(), parser_.payload(), parser_.payload_len());
             feed_steps();  // a frame's work may have taken a while: keep the ring fed
-            if (continuous_) run_sampler(board_.now_us());
         }
     }
 }

@@ -60,7 +60,6 @@ bool Device::begin(const QueuedCommand& c) {
         reset_armed_ = false;  // the host armed a reset at rest, not this
         board_.position_record(start, false, false);  // a reset mid-move leaves it unknown
         planner_.begin(distance, c.value, c.accel);
-        if (continuous_) run_sampler(board_.now_us());  // begin() and the events took most of a conversion
         exec_ = EXEC_MOVE;
         feed_steps();
         return true;
@@ -150,9 +149,6 @@ void Device::feed_steps() {
                                                 ((static_cast<int32_t>(add) * pairs) >> 8));
         }
     }
-    // the continuous sampler gets a look after every feed: on a ramp's per-step runs a
-    // pass can otherwise outlast one ADS1115 conversion
-    if (continuous_) run_sampler(board_.now_us());
 }
 
 // STOP and the host watchdog: queue cleared, heater off, the running move (if any)

@@ -11,14 +11,15 @@
 #include "twi.h"
 
 namespace {
-struct Slot {
+struct Slot {  // eight bytes: one shift to index
     uint32_t t_us;
     uint16_t step_position16;
     volatile uint8_t bytes[2];
-    volatile uint8_t status;
 };
+static_assert(sizeof(Slot) == 8, "one shift to index");
 const uint8_t SLOT_MASK = hal::ADS_STREAM_SLOTS - 1;
 Slot g_slots[hal::ADS_STREAM_SLOTS];
+volatile uint8_t g_status[hal::ADS_STREAM_SLOTS];  // each slot's read: hal::TWI_ASYNC_*
 volatile uint8_t g_head;     // ISR writes
 volatile uint8_t g_tail;     // main loop
 volatile uint8_t g_lost;     // samples dropped on a full ring since the last take (saturating)
@@ -26,10 +27,9 @@ volatile uint8_t g_every = 1;
 volatile uint8_t g_until;    // edges until the next sample
 volatile uint8_t g_address;
 volatile bool g_have_prev;
-volatile uint32_t g_prev_us;
+volatile uint32_t g_prev_us;   // the last edge: the running conversion's start
 volatile uint16_t g_prev_pos;
-volatile uint32_t g_edges;
-volatile uint32_t g_last_us;
+volatile uint16_t g_edges;     // since the start (wraps: the main loop takes differences)
 }  // namespace
 
 namespace hal {
@@ -44,7 +44,6 @@ void ads_stream_start(uint8_t address7, uint8_t every) {
         g_until = g_every;
         g_have_prev = false;
         g_edges = 0;
-        g_last_us = 0;
         g_tail = g_head;
         g_lost = 0;
         EIMSK |= 1 << INT4;
@@ -63,13 +62,14 @@ void ads_stream_stop() {
 bool ads_stream_take(AdsSample& s, uint8_t& lost) {
     const uint8_t tail = g_tail;
     if (tail == g_head) return false;
-    Slot& slot = g_slots[tail & SLOT_MASK];
-    if (slot.status == TWI_ASYNC_PENDING) return false;  // its read is under way
+    const Slot& slot = g_slots[tail & SLOT_MASK];
+    const uint8_t status = g_status[tail & SLOT_MASK];
+    if (status == TWI_ASYNC_PENDING) return false;  // its read is under way
     s.t_us = slot.t_us;
     s.step_position16 = slot.step_position16;
     s.bytes[0] = slot.bytes[0];
     s.bytes[1] = slot.bytes[1];
-    s.status = slot.status;
+    s.status = status;
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
         lost = g_lost;
         g_lost = 0;
@@ -78,38 +78,39 @@ bool ads_stream_take(AdsSample& s, uint8_t& lost) {
     return true;
 }
 
-void ads_stream_edges(uint32_t& edges, uint32_t& last_us) {
+void ads_stream_edges(uint16_t& edges, uint32_t& last_us) {
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
         edges = g_edges;
-        last_us = g_last_us;
+        last_us = g_prev_us;
     }
 }
 
 }  // namespace hal
 
-// A conversion finished (ALERT/RDY fell): stamp the edge, queue the sample whose
-// conversion it ends and start reading its result. Loop-free (scripts/isr_cycles.py).
+// A conversion finished (ALERT/RDY fell): queue the sample whose conversion it ends
+// (stamped with that conversion's start, the previous edge) and start reading its
+// result, then stamp this edge. The clock is latched first; the rest cannot move while
+// interrupts are masked. Loop- and call-free (scripts/isr_cycles.py).
 ISR(INT4_vect) {
-    const uint32_t t = hal::micros32_locked();
-    const uint16_t pos = hal::step_position16_locked();
-    const uint32_t edges = g_edges + 1;
-    g_edges = edges;
-    g_last_us = t;
-    if (!g_have_prev) {
-        g_have_prev = true;
-    } else if (--g_until == 0) {
+    const uint16_t t16 = TCNT3;
+    const uint8_t overflow = TIFR3 & (1 << TOV3);
+    if (g_have_prev && --g_until == 0) {
         g_until = g_every;
         const uint8_t head = g_head;
         if (static_cast<uint8_t>(head - g_tail) >= hal::ADS_STREAM_SLOTS) {
             if (g_lost != 0xFF) g_lost = static_cast<uint8_t>(g_lost + 1);
         } else {
-            Slot& slot = g_slots[head & SLOT_MASK];
+            const uint8_t i = head & SLOT_MASK;
+            // the byte offset as a byte (-Os would shift a 16-bit index in a loop)
+            Slot& slot = *reinterpret_cast<Slot*>(reinterpret_cast<uint8_t*>(g_slots) + static_cast<uint8_t>(i << 3));
             slot.t_us = g_prev_us;
             slot.step_position16 = g_prev_pos;
-            if (!hal::twi_async_read2(g_address, slot.bytes, &slot.status)) slot.status = hal::TWI_ASYNC_FAILED;
+            if (!hal::twi_async_read2(g_address, slot.bytes, &g_status[i])) g_status[i] = hal::TWI_ASYNC_FAILED;
             g_head = static_cast<uint8_t>(head + 1);
         }
     }
-    g_prev_us = t;
-    g_prev_pos = pos;
+    g_have_prev = true;
+    g_edges = static_cast<uint16_t>(g_edges + 1);
+    g_prev_us = hal::micros32_from(t16, overflow);
+    g_prev_pos = hal::step_position16_locked();
 }

@@ -33,6 +33,6 @@ struct AdsSample {
 void ads_stream_start(uint8_t address7, uint8_t every);
 void ads_stream_stop();
 bool ads_stream_take(AdsSample& s, uint8_t& lost);
-void ads_stream_edges(uint32_t& edges, uint32_t& last_us);
+void ads_stream_edges(uint16_t& edges, uint32_t& last_us);  // edges wrap at 65536
 
 }  // namespace hal

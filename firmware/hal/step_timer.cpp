@@ -30,24 +30,33 @@ volatile uint8_t g_tail = 0;
 
 volatile __uint24 g_run_q8 = 0;   // interval of the run's pending step (less one tick)
 volatile int16_t g_run_add = 0;
-volatile uint8_t g_run_left = 0;  // its steps after the pending edge
 volatile uint8_t g_carry = 0;     // fraction of a tick carried to the next interval
-volatile uint8_t g_pending = 0;   // the pending compare match is a STEP edge (not a wait)
-
-// Position after every step of the runs taken so far (Klipper's per-run update), in 16
-// bits (the ISR's add is short); the steps of the taken run still to come are
-// subtracted when it is read, and the main loop extends it to 32 bits (it reads it far
-// more often than every 32,767 steps).
-volatile uint16_t g_position16 = 0;
 int32_t g_position32 = 0;   // main loop only: the last extended position ...
 uint16_t g_seen16 = 0;      // ... and its 16-bit value
 uint16_t g_pushed16 = 0;    // main loop only: the position once every queued run is done
-volatile int8_t g_dir = 1;          // direction of every queued step
-volatile bool g_running = false;    // a compare match is pending on Timer1
 volatile bool g_expect_more = false;  // the producer promised more steps
 volatile uint16_t g_underruns = 0;
 volatile uint16_t g_fast_underruns = 0;
 
+}  // namespace
+
+// Shared with the ALERT/RDY ISR (step_position16_locked, step_timer.h).
+// Position after every step of the runs taken so far (Klipper's per-run update), in 16
+// bits (the ISR's update is short); the steps of the taken run still to come are
+// subtracted when it is read, and the main loop extends it to 32 bits (it reads it far
+// more often than every 32,767 steps).
+volatile uint16_t detail::g_position16 = 0;
+volatile uint8_t detail::g_run_left = 0;  // the taken run's steps after the pending edge
+volatile uint8_t detail::g_pending = 0;   // the pending compare match is a STEP edge (not a wait)
+volatile bool detail::g_running = false;  // a compare match is pending on Timer1
+volatile int8_t detail::g_dir = 1;        // direction of every queued step
+using detail::g_position16;
+using detail::g_run_left;
+using detail::g_pending;
+using detail::g_running;
+using detail::g_dir;
+
+namespace {
 const uint8_t TIMER1_STOPPED = 1 << WGM12;               // CTC on OCR1A, no clock
 const uint8_t TIMER1_RUNNING = (1 << WGM12) | (1 << CS11);  // CTC, F_CPU / 8
 
@@ -100,12 +109,6 @@ void start_locked() {
     TIFR1 = 1 << OCF1A;
     TCCR1B = TIMER1_RUNNING;
     g_running = true;
-}
-
-// Steps of the taken run still to come (the pending edge, if a step, and the rest), signed.
-inline int16_t owed_locked() {
-    const int16_t owed = static_cast<int16_t>(g_run_left + (g_running && g_pending ? 1 : 0));
-    return g_dir > 0 ? owed : static_cast<int16_t>(-owed);
 }
 
 // 16-bit position -> 32 bits, from the last extension (main loop).
@@ -181,8 +184,6 @@ bool step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t c
 bool step_busy() { return g_running || g_head != g_tail; }
 
 bool step_running() { return g_running; }
-
-uint16_t step_position16_locked() { return static_cast<uint16_t>(g_position16 - owed_locked()); }
 
 int32_t step_position_near(uint16_t p16) {
     return step_position() + static_cast<int16_t>(static_cast<uint16_t>(p16 - g_seen16));

@@ -46,10 +46,23 @@ uint8_t step_space();
 bool step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last);
 bool step_busy();
 int32_t step_position();
-// For the ALERT/RDY ISR (interrupts masked): the position's low 16 bits now; the main
-// loop turns such a value into a position with step_position_near() (it must be within
-// 32,767 steps of the present one).
-uint16_t step_position16_locked();
+
+namespace detail {  // the step ISR's state that step_position16_locked() reads
+extern volatile uint16_t g_position16;
+extern volatile uint8_t g_run_left;
+extern volatile uint8_t g_pending;
+extern volatile bool g_running;
+extern volatile int8_t g_dir;
+}  // namespace detail
+
+// For the ALERT/RDY ISR (interrupts masked): the position's low 16 bits now (inline: the
+// ISR stays free of calls); the main loop turns such a value into a position with
+// step_position_near() (it must be within 32,767 steps of the present one).
+__attribute__((always_inline)) inline uint16_t step_position16_locked() {
+    const uint8_t owed = static_cast<uint8_t>(detail::g_run_left + (detail::g_running && detail::g_pending ? 1 : 0));
+    return detail::g_dir > 0 ? static_cast<uint16_t>(detail::g_position16 - owed)
+                             : static_cast<uint16_t>(detail::g_position16 + owed);
+}
 int32_t step_position_near(uint16_t p16);
 void step_set_position(int32_t steps);
 void step_halt();

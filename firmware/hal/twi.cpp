@@ -8,6 +8,17 @@
 
 namespace hal {
 
+volatile uint8_t detail::g_astate = 0;
+volatile uint8_t* volatile detail::g_aout = 0;
+volatile uint8_t* volatile detail::g_astatus = 0;
+volatile uint8_t detail::g_asla = 0;
+volatile uint16_t detail::g_astart = 0;
+using detail::g_astate;
+using detail::g_aout;
+using detail::g_astatus;
+using detail::g_asla;
+using detail::g_astart;
+
 namespace {
 const uint32_t TWI_HZ = 400000UL;
 
@@ -26,15 +37,7 @@ const uint8_t ST_DATA_R_NACK = 0x58;
 const uint8_t SCL = 1 << 0;
 const uint8_t SDA = 1 << 1;
 
-// The interrupt-driven read: its state (0 idle, 1 START sent, 2 SLA+R sent, 3 first
-// byte, 4 second byte), where it stores, when it began (ticks16) and whether a bus
-// error asks for a recovery.
-volatile uint8_t g_astate = 0;
-volatile uint8_t* volatile g_aout = 0;
-volatile uint8_t* volatile g_astatus = 0;
-volatile uint8_t g_asla = 0;
-volatile uint16_t g_astart = 0;
-volatile bool g_arecover = false;
+volatile bool g_arecover = false;  // a bus error in the interrupt-driven read asks for a recovery
 
 uint16_t g_recoveries = 0;
 uint64_t g_backoff_until_us = 0;
@@ -185,18 +188,6 @@ bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
 }
 
 uint16_t twi_recoveries() { return g_recoveries; }
-
-bool twi_async_read2(uint8_t address7, volatile uint8_t* out, volatile uint8_t* status) {
-    if (g_astate || (TWCR & (1 << TWSTO))) return false;
-    g_aout = out;
-    g_astatus = status;
-    *status = TWI_ASYNC_PENDING;
-    g_asla = static_cast<uint8_t>((address7 << 1) | 1);
-    g_astart = ticks16();
-    g_astate = 1;
-    TWCR = (1 << TWINT) | (1 << TWEN) | (1 << TWSTA) | (1 << TWIE);
-    return true;
-}
 
 bool twi_async_busy() { return g_astate != 0; }
 

@@ -13,6 +13,10 @@
 #pragma once
 #include <stdint.h>
 
+#ifdef __AVR__
+#include <avr/io.h>
+#endif
+
 namespace hal {
 
 static const uint16_t TWI_TIMEOUT_US = 1000;
@@ -33,7 +37,29 @@ uint16_t twi_recoveries();  // since boot, saturating
 static const uint8_t TWI_ASYNC_PENDING = 0;
 static const uint8_t TWI_ASYNC_OK = 1;
 static const uint8_t TWI_ASYNC_FAILED = 2;
-bool twi_async_read2(uint8_t address7, volatile uint8_t* out, volatile uint8_t* status);
+namespace detail {  // the interrupt-driven read's state (twi.cpp)
+extern volatile uint8_t g_astate;  // 0 idle, 1 START sent, 2 SLA+R sent, 3 first byte, 4 second byte
+extern volatile uint8_t* volatile g_aout;
+extern volatile uint8_t* volatile g_astatus;
+extern volatile uint8_t g_asla;
+extern volatile uint16_t g_astart;  // Timer3 ticks when it began
+}  // namespace detail
+
+#ifdef __AVR__
+// Inline: the ALERT/RDY ISR that starts it stays free of calls.
+__attribute__((always_inline)) inline bool twi_async_read2(uint8_t address7, volatile uint8_t* out,
+                                                           volatile uint8_t* status) {
+    if (detail::g_astate || (TWCR & (1 << TWSTO))) return false;
+    detail::g_aout = out;
+    detail::g_astatus = status;
+    *status = TWI_ASYNC_PENDING;
+    detail::g_asla = static_cast<uint8_t>((address7 << 1) | 1);
+    detail::g_astart = TCNT3;
+    detail::g_astate = 1;
+    TWCR = (1 << TWINT) | (1 << TWEN) | (1 << TWSTA) | (1 << TWIE);
+    return true;
+}
+#endif
 bool twi_async_busy();
 void twi_async_service();
 

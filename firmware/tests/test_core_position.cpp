@@ -266,3 +266,103 @@ TEST(core_identity_reports_sampling_floor_and_release_time) {
     CHECK_EQ(h.replies[0].f[14], cfg::MIN_SAMPLE_PERIOD_US);
     CHECK_EQ(h.replies[0].f[15], cfg::FAULT_RELEASE_MS);
 }
+
+// A STOP below the start/stop speed (sqrt(2 a_max) = 800 steps/s) stops at once: the
+// steps kept end the train, and their running dry is no underrun. (Before: a false
+// STEP_UNDERRUN, the promise of more steps left standing.)
+TEST(core_slow_stop_is_no_underrun) {
+    Harness h;
+    h.keepalive = true;
+    h.boot();
+    h.move_to(1, 100000, 500, 1000);
+    h.run_us(1500000);
+    CHECK(h.board.step_busy());
+    h.stop();
+    h.run_us(300000);
+    CHECK(!h.board.step_busy());
+    CHECK_EQ(h.board.underruns, 0);
+    CHECK_EQ(h.count(proto::Event::ID, ev::STEP_UNDERRUN), 0);
+}
+
+// An underrun above the start/stop speed: the motor may have lost steps, so the position
+// is suspect (EVENT position_suspect, QUEUE_STATUS state) until SET_POSITION. Below that
+// speed an underrun is only a pause.
+TEST(core_fast_underrun_makes_the_position_suspect) {
+    Harness h;
+    h.keepalive = true;
+    h.board.step_ring_size = 2;
+    h.step_us = 2000;
+    h.boot();
+    h.move_to(1, 16000, cfg::MAX_RATE_STEPS_PER_S, cfg::MAX_ACCEL_STEPS_PER_S2);
+    h.run_until_event(ev::QUEUE_EMPTY, 3000000);
+    CHECK(h.board.fast_underruns > 0);
+    const int i = h.find(proto::Event::ID, ev::POSITION_SUSPECT);
+    CHECK(i >= 0);
+    CHECK(h.dev.position_suspect());
+    h.clear();
+    h.heartbeat();
+    CHECK_EQ(last_status_field(h, QS_STATE) & ds::POSITION_SUSPECT, ds::POSITION_SUSPECT);
+    h.set_position(0);
+    h.clear();
+    h.heartbeat();
+    CHECK_EQ(last_status_field(h, QS_STATE) & ds::POSITION_SUSPECT, 0);
+    // slow: the same starved ring at 400 steps/s pauses the train, nothing more
+    Harness slow;
+    slow.keepalive = true;
+    slow.board.step_ring_size = 1;
+    slow.step_us = 20000;
+    slow.boot();
+    slow.move_to(1, 400, 400, cfg::MAX_ACCEL_STEPS_PER_S2);
+    slow.run_until_event(ev::QUEUE_EMPTY, 5000000);
+    CHECK(slow.board.underruns > 0);
+    CHECK_EQ(slow.board.fast_underruns, 0);
+    CHECK(!slow.dev.position_suspect());
+    CHECK_EQ(slow.count(proto::Event::ID, ev::POSITION_SUSPECT), 0);
+}
+
+// ARM_RESET: the host means to reset the board (it reopens the port). Refused while the
+// position is unknown or a move runs; accepted at rest it arms the record; a move
+// disarms it; a boot spends it.
+TEST(core_arm_reset_arms_the_record_at_rest_only) {
+    Harness h;
+    h.board.kept_valid = false;
+    h.boot();
+    CHECK(!h.board.record_armed);
+    uint16_t s = h.send(proto::ArmReset::ID, 0, 0);
+    CHECK_EQ(h.ack_status(s, proto::ArmReset::ID), st::BAD_STATE);  // position unknown
+    h.set_position(0);
+    h.move_to(1, 3200, 16000, 320000);
+    s = h.send(proto::ArmReset::ID, 0, 0);
+    CHECK_EQ(h.ack_status(s, proto::ArmReset::ID), st::BAD_STATE);  // moving
+    h.run_until_event(ev::QUEUE_EMPTY, 2000000);
+    CHECK(!h.board.record_armed);
+    h.clear();
+    s = h.send(proto::ArmReset::ID, 0, 0);
+    CHECK_EQ(h.ack_status(s, proto::ArmReset::ID), st::OK);
+    CHECK(h.board.record_valid && h.board.record_armed && h.board.record_steps == 3200);
+    h.clear();
+    h.move_to(2, 0, 16000, 320000);  // a move disarms it, for good
+    h.run_until_event(ev::QUEUE_EMPTY, 2000000);
+    CHECK_EQ(h.board.position, 0);
+    CHECK(h.board.record_valid && !h.board.record_armed);
+    // a boot spends the arm: the next reset is not armed
+    Harness b;
+    b.board.kept_valid = true;
+    b.board.kept_steps = 3200;
+    b.boot();
+    CHECK(b.dev.position_known());
+    CHECK(b.board.record_valid && !b.board.record_armed);
+}
+
+// A slow step longer than the generator takes in a run goes alone (the board chains it);
+// the move still ends exactly where it should.
+TEST(core_slow_steps_go_alone) {
+    Harness h;
+    h.keepalive = true;
+    h.boot();
+    h.move_to(1, 20, 20, 40);  // 20 steps/s: 100,000 ticks a step
+    h.run_until_event(ev::QUEUE_EMPTY, 5000000);
+    CHECK_EQ(h.board.position, 20);
+    CHECK(h.board.long_steps >= 15);
+    CHECK_EQ(h.board.underruns, 0);
+}

@@ -32,6 +32,15 @@ def test_avr_build_fits_the_memory_budget(repo_root, toolchain):
     assert int(sram.group(1)) <= SRAM_BUDGET_B
 
 
+def test_step_isr_within_its_cycle_budget(repo_root, toolchain):
+    """The static worst case of the step ISR (scripts/isr_cycles.py) is at most 150 cycles;
+    the script itself fails beyond it. (Before: 255.)"""
+    result = run(repo_root, "make", "-C", "firmware", "isr-cycles")
+    assert result.returncode == 0, result.stdout + result.stderr
+    worst = re.search(r"__vector_17 \(TIMER1_COMPA_vect.*?worst case (\d+) cycles", result.stdout)
+    assert worst and int(worst.group(1)) <= 150, result.stdout
+
+
 def test_native_unit_tests_pass(repo_root, toolchain):
     result = run(repo_root, "make", "-C", "firmware", "test")
     summary = re.findall(r"^(\d+) passed, (\d+) failed$", result.stdout, re.M)
