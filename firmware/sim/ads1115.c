@@ -26,7 +26,8 @@
 // A conversion starts when the config write's last byte has been shifted in (nine bit
 // times after the byte's TWCR write, twi_bus.c); in continuous mode each next one starts
 // as the one before ends (its ALERT/RDY edge). Every start is the sampler's real timing
-// (jitter figure; --trace writes each as `ads_start <us>` on the firmware's clock). The plant's position reading is requested at
+// (jitter figure; --trace writes each as `ads_start <us> <steps>`: the firmware's clock
+// and the A4988's step count then). The plant's position reading is requested at
 // the end of the conversion. Faults injected on the bus (NACK, stretching, a stuck SDA)
 // come from twi_bus.c.
 //
@@ -200,7 +201,7 @@ static void note_start(uint64_t start) {
         h->ads_intervals++;
     }
     h->ads_last_start = start;
-    if (g.trace) fprintf(g.trace, "ads_start %.3f\n", harness_app_us(h, start));
+    if (g.trace) fprintf(g.trace, "ads_start %.3f %d\n", harness_app_us(h, start), (int)h->drive.steps);
 }
 
 // The config register was written (its LSB just arrived).
@@ -254,6 +255,10 @@ static void on_twi(struct avr_irq_t *irq, uint32_t value, void *param) {
     }
     if (!g.selected) return;
     if (msg & TWI_COND_WRITE) {
+        if (g.write_index == 1 && g.pointer == 1 && twi_bus_nack_config()) {
+            g.selected = 0;  // not acknowledged (nackcfg): the write ends here, nothing applied
+            return;
+        }
         reply(TWI_COND_ACK, addr, 1);
         if (g.write_index == 0) {
             g.pointer = data & 3;

@@ -106,6 +106,7 @@ int twi_bus_add_fault(const char *spec, char *err, size_t errlen);
 void twi_bus_attach(struct harness *h);
 void twi_bus_reset(struct harness *h);
 int twi_bus_nack_now(void);
+int twi_bus_nack_config(void);  // 1: NACK this byte written to the ADS1115's config register
 uint64_t twi_bus_byte_cycles(void);
 void cs5513_attach(struct harness *h, double conversion_us);
 void cs5513_reset(struct harness *h);
