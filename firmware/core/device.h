@@ -64,7 +64,7 @@ typedef void (*SimLoadHandler)(void* ctx, uint32_t load_mg);
 // Most step runs (entries) feed_steps() hands to the step ring per call (see device_exec.cpp).
 static const uint8_t FEED_RUNS_PER_CALL = 4;
 // feed_steps() keeps this much step time queued ahead of the step generator, no more:
-// the ring (255 entries, ~16 ms of ramp steps at the top rate) is never filled in one
+// the ring (128 entries, ~8 ms of single ramp steps at the top rate) is never filled in one
 // go at a move's start, so the work per pass stays proportional to the steps taken.
 static const uint32_t STEP_LOOKAHEAD_US = 10000UL;
 

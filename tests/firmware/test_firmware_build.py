@@ -30,6 +30,9 @@ def test_avr_build_fits_the_memory_budget(repo_root, toolchain):
     sram = re.search(r"Data:\s+(\d+) bytes", result.stdout)
     assert sram, result.stdout
     assert int(sram.group(1)) <= SRAM_BUDGET_B
+    # the figures in firmware/README.md are this build's, generated (make docs-size), not typed
+    check = run(repo_root, "python3", "scripts/size_figures.py", "firmware/build/tsa_bench.elf", "--check")
+    assert check.returncode == 0, check.stdout + check.stderr
 
 
 def test_step_isr_within_its_cycle_budget(repo_root, toolchain):
