@@ -102,7 +102,7 @@ bool AvrBoard::position_take(fw::ConvSample& s) {
     return true;
 }
 
-uint32_t AvrBoard::position_edges(uint64_t& last_us) {
+uint16_t AvrBoard::position_edges(uint64_t& last_us) {
     uint16_t edges;
     uint32_t last;
     hal::ads_stream_edges(edges, last);

@@ -111,9 +111,10 @@ public:
     virtual bool position_continuous(bool on, uint8_t every) = 0;
     // The oldest finished continuous sample; false when none is ready.
     virtual bool position_take(ConvSample& s) = 0;
-    // ALERT/RDY edges since continuous mode was last armed, and the time of the last one
-    // (us since boot; with 0 edges it means nothing).
-    virtual uint32_t position_edges(uint64_t& last_us) = 0;
+    // ALERT/RDY edges since continuous mode was last armed, modulo 65536 (it wraps every
+    // 76 s at 860/s: callers compare and subtract), and the time of the last one (us
+    // since boot; before the first edge it means nothing).
+    virtual uint16_t position_edges(uint64_t& last_us) = 0;
     // Start one resistance conversion (CS5513); the sense current must be on and
     // settled (the core waits config RESISTANCE_SETTLE_US after enabling it).
     virtual bool resistance_start() = 0;

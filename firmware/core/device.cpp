@@ -32,8 +32,8 @@ Device::Device(Board& board)
       counter_(0), samples_missed_(0), sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true),
       resistance_started_(false), sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0),
       continuous_(false), continuous_ok_(false), in_outage_(false), sensor_event_owed_(false),
-      resume_gap_(false), have_last_stamp_(false), conv_per_sample_(1), sensor_restarts_(0), edges_seen_(0),
-      period_ref_edges_(0), sensor_period_ns_(0), period_ref_us_(0), last_alive_us_(0), armed_at_us_(0),
+      resume_gap_(false), have_last_stamp_(false), conv_per_sample_(1), sensor_restarts_(0), have_edge_(false),
+      edges_seen_(0), period_edges_(0), sensor_period_ns_(0), period_ref_us_(0), last_alive_us_(0), armed_at_us_(0),
       last_stamp_us_(0), word_armed_(false), word_ready_(false), word_counts_(0), word_flags_(0), pending_len_(0),
       pending_samples_(0) {
     last_ack_ = proto::Ack();

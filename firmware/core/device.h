@@ -149,7 +149,7 @@ private:
     void continuous_on(uint64_t now);
     void arm_continuous(uint64_t now);
     void restart_continuous(uint64_t now);
-    void measure_period(uint32_t edges, uint64_t last_edge_us);
+    void measure_period(uint16_t new_edges, uint64_t last_edge_us);
     void take_conversion(const ConvSample& c);
     void progress_words(uint64_t now);
     void continuous_off();
@@ -230,8 +230,9 @@ private:
     bool have_last_stamp_;
     uint8_t conv_per_sample_;
     uint16_t sensor_restarts_;
-    uint32_t edges_seen_;
-    uint32_t period_ref_edges_;
+    bool have_edge_;          // an edge came since the last set-up
+    uint16_t edges_seen_;     // the board's edge count (wraps)
+    uint32_t period_edges_;   // edges since the period's reference (0: no reference yet)
     uint32_t sensor_period_ns_;
     uint64_t period_ref_us_;
     uint64_t last_alive_us_;  // the last edge (or when continuous sampling began)

@@ -64,8 +64,9 @@ void Device::continuous_on(uint64_t now) {
 void Device::arm_continuous(uint64_t now) {
     continuous_ok_ = board_.position_continuous(true, conv_per_sample_);
     armed_at_us_ = now;
+    have_edge_ = false;
     edges_seen_ = 0;
-    period_ref_edges_ = 0;
+    period_edges_ = 0;
     resume_gap_ = have_last_stamp_;
 }
 
@@ -84,32 +85,37 @@ void Device::run_continuous(uint64_t now) {
         ConvSample c;
         for (uint8_t n = 0; n < 8 && board_.position_take(c); ++n) take_conversion(c);
         uint64_t last_edge = 0;
-        const uint32_t edges = board_.position_edges(last_edge);
-        if (edges != edges_seen_) {
+        const uint16_t edges = board_.position_edges(last_edge);
+        if (edges != edges_seen_) {  // the count wraps every 76 s: only a change counts
+            const uint16_t new_edges = static_cast<uint16_t>(edges - edges_seen_);
             edges_seen_ = edges;
+            have_edge_ = true;
             last_alive_us_ = last_edge;
             in_outage_ = false;
-            measure_period(edges, last_edge);
+            measure_period(new_edges, last_edge);
         }
     }
     // Silence: no edge (or no working set-up) for a few conversions.
-    const uint64_t quiet_since = continuous_ok_ && edges_seen_ ? last_alive_us_ : armed_at_us_;
+    const uint64_t quiet_since = continuous_ok_ && have_edge_ ? last_alive_us_ : armed_at_us_;
     const bool dead = elapsed(now, last_alive_us_) > cfg::SENSOR_DEAD_US;
     if (elapsed(now, quiet_since) > (dead ? cfg::SENSOR_RETRY_US : SILENCE_US)) restart_continuous(board_.now_us());
     if (dead && !fault_) trip(proto::fault::POSITION_SENSOR, now, true);
 }
 
-void Device::measure_period(uint32_t edges, uint64_t last_edge_us) {
-    if (period_ref_edges_ == 0) {
-        period_ref_edges_ = edges;
+// The conversion period between edges, averaged over PERIOD_WINDOW_US or more: edges
+// counted from a reference edge (the first after a set-up, then the window's last).
+void Device::measure_period(uint16_t new_edges, uint64_t last_edge_us) {
+    if (period_edges_ == 0) {  // the reference
+        period_edges_ = 1;
         period_ref_us_ = last_edge_us;
         return;
     }
+    period_edges_ += new_edges;
     const uint64_t span = last_edge_us - period_ref_us_;
     if (span < PERIOD_WINDOW_US) return;
-    const uint32_t n = edges - period_ref_edges_;
+    const uint32_t n = period_edges_ - 1;
     sensor_period_ns_ = static_cast<uint32_t>(span * 1000U / n);
-    period_ref_edges_ = edges;
+    period_edges_ = 1;
     period_ref_us_ = last_edge_us;
 }
 

@@ -280,9 +280,9 @@ bool FakeBoard::position_take(ConvSample& s) {
     return true;
 }
 
-uint32_t FakeBoard::position_edges(uint64_t& last_us) {
+uint16_t FakeBoard::position_edges(uint64_t& last_us) {
     last_us = last_edge_us_;
-    return continuous_ ? static_cast<uint32_t>(edges_done_) : 0;
+    return continuous_ ? static_cast<uint16_t>(edges_done_) : 0;  // wraps, as the AVR board's
 }
 
 bool FakeBoard::resistance_start() {

@@ -114,7 +114,7 @@ public:
     bool position_start() override;
     bool position_continuous(bool on, uint8_t every) override;
     bool position_take(ConvSample& s) override;
-    uint32_t position_edges(uint64_t& last_us) override;
+    uint16_t position_edges(uint64_t& last_us) override;
     int8_t position_poll(int16_t& counts) override;
     bool resistance_start() override;
     int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
