@@ -7,7 +7,9 @@
 
 static const char *vector_name(int v) {
     switch (v) {
+        case 5: return "INT4";
         case 12: return "WDT";
+        case 13: return "TIMER2_COMPA";
         case 17: return "TIMER1_COMPA";
         case 25: return "USART0_RX";
         case 26: return "USART0_UDRE";
