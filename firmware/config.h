@@ -66,10 +66,14 @@ static const uint32_t SAMPLE_LINE_BUDGET_PERCENT = 80UL;
 // unknown from then on), the sense current and sampling go off (EVENT motor_released).
 // 0 = never release.
 static const uint32_t FAULT_RELEASE_MS = 10000UL;
-// A controlled stop lets this many queued steps run before its deceleration starts
-// (they are already at the current speed; the main loop needs them to queue the
-// deceleration without a gap).
+// A controlled stop lets the queued steps of the next STOP_KEEP_US run before its
+// deceleration starts, at least STOP_KEEP_STEPS and at most STOP_KEEP_MAX_STEPS (they
+// are already at the current speed; the main loop needs that long to plan and queue the
+// deceleration without a gap: with two steps kept, 125 us at 16,000 steps/s, the train
+// ran dry at speed in simavr).
 static const uint8_t STOP_KEEP_STEPS = 2;
+static const uint8_t STOP_KEEP_MAX_STEPS = 16;
+static const uint32_t STOP_KEEP_US = 1000UL;
 
 // ADS1115 at I2C 0x48, single-ended AIN0, PGA +-6.144 V (config bits PGA = 000),
 // 860 samples/s (DR = 111): 187.5 uV/count, conversion ~1.2 ms.

@@ -24,7 +24,7 @@ const uint16_t SAMPLE_TX_RESERVE =
 Device::Device(Board& board)
     : board_(board), writer_(board), sim_load_(0), sim_ctx_(0), has_last_(false), last_seq_(0),
       last_id_(0), duplicates_(0), last_host_us_(0), scan_offset_(0), stop_owed_(false), stop_seq_(0),
-      stops_found_(0), burst_us_(0), fed_ticks_(0), exec_(EXEC_NONE), starting_(false),
+      stops_found_(0), burst_us_(0), last_run_q8_(0), fed_ticks_(0), exec_(EXEC_NONE), starting_(false),
       segment_(NO_SEGMENT), projected_(0), move_target_(0), move_dir_(0), seg_t_us_(0), dwell_us_(0),
       heater_mV_(0), fault_(0), fault_since_us_(0), stopping_(false), rest_steps_(0), position_known_(false),
       position_suspect_(false), reset_armed_(false), motor_released_(false), underruns_seen_(0),

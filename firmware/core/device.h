@@ -14,7 +14,7 @@
 // it runs, so a reset mid-move leaves the position unknown.
 //
 // Stopping. STOP and the host watchdog stop the motor under control: the queued steps
-// beyond cfg::STOP_KEEP_STEPS are dropped and replaced by a deceleration at
+// beyond about cfg::STOP_KEEP_US of them (2..16 steps) are dropped and replaced by a deceleration at
 // cfg::MAX_ACCEL_STEPS_PER_S2 (StepPlanner::stop); EVENT stopped (or fault) carries the
 // position the motor comes to rest at, and nothing new starts before it is there. The
 // twist-limit guard halts at once (a planner bug) and makes the position unknown. A
@@ -184,6 +184,7 @@ private:
 
     // executor
     uint64_t burst_us_;     // when the step generator last started from idle
+    uint32_t last_run_q8_;  // the first interval of the run pushed last (the present speed)
     uint32_t fed_ticks_;    // step time handed to it since then, STEP_TICK_HZ ticks
     Exec exec_;
     bool starting_;         // idle with segments (or QUEUE_EMPTY) still to start/report

@@ -140,6 +140,7 @@ void Device::feed_steps() {
             planner_.rewind(count);  // no room for its chain yet: again on a later pass
             break;
         }
+        last_run_q8_ = q8;
         // the run's time: count q8 + add count (count - 1) / 2, in whole ticks
         if (count == 1) {
             fed_ticks_ += q8 >> 8;
@@ -159,7 +160,11 @@ void Device::controlled_stop() {
     set_heater(0);
     if (exec_ == EXEC_MOVE) {
         int32_t rest = 0;
-        const uint32_t dropped = board_.step_truncate(cfg::STOP_KEEP_STEPS, rest);
+        // keep about STOP_KEEP_US of steps at the present speed (the last run's interval)
+        const uint32_t ticks = last_run_q8_ >> 8;
+        uint32_t keep = ticks ? cfg::STOP_KEEP_US * (STEP_TICK_HZ / 1000000UL) / ticks : 0;
+        keep = keep < cfg::STOP_KEEP_STEPS ? cfg::STOP_KEEP_STEPS : keep > cfg::STOP_KEEP_MAX_STEPS ? cfg::STOP_KEEP_MAX_STEPS : keep;
+        const uint32_t dropped = board_.step_truncate(static_cast<uint8_t>(keep), rest);
         planner_.rewind(dropped);
         const uint32_t left = planner_.stop(cfg::MAX_ACCEL_STEPS_PER_S2);
         // Slow enough to stop at once: the steps kept end the train, and its running dry

@@ -112,7 +112,7 @@ TEST(core_stop_fast_decelerates_at_the_limit_slow_stops_at_once) {
     h.stop();
     const int32_t rest = static_cast<int32_t>(h.replies[1].f[4]);
     // v^2 / 2a = 16000^2 / 640000 = 400 steps (plus the steps already committed)
-    CHECK(rest >= at + 400 && rest <= at + 400 + 2 + cfg::STOP_KEEP_STEPS);
+    CHECK(rest >= at + 400 && rest <= at + 400 + 2 + cfg::STOP_KEEP_MAX_STEPS);
     h.heartbeat();
     CHECK_EQ(last_status_field(h, QS_STATE) & ds::STOPPING, ds::STOPPING);
     // a queued command waits until the motor is at rest, then runs
@@ -134,7 +134,7 @@ TEST(core_stop_fast_decelerates_at_the_limit_slow_stops_at_once) {
     const int32_t where = slow.board.position;
     slow.clear();
     slow.stop();
-    CHECK(slow.replies[1].f[4] <= where + 1 + cfg::STOP_KEEP_STEPS);
+    CHECK(slow.replies[1].f[4] <= where + 1 + cfg::STOP_KEEP_STEPS);  // slow: only the fewest are kept
     slow.run_us(200000);
     CHECK_EQ(slow.board.position, slow.replies[1].f[4]);
 }
