@@ -18,10 +18,18 @@ reordered frames put back in order; its counters are :attr:`BenchClient.link`.
 The client never sleeps on wall time except while waiting for bytes from the port;
 ``on_wait`` (if set) is called while it waits, so a caller can break a long wait
 (the runner raises KeyboardInterrupt from it when the user asked to stop).
+
+Threads: the port is used under one lock, so :meth:`send_keepalive` may be called from
+another thread (:mod:`tsa_bench.device.keepalive`) while the owner reads or sends; every
+other method belongs to the thread that owns the session. A keepalive is never sent
+while a command waits for its ACK (the device recognises a repeat only as the frame it
+processed last, so a frame in between would make a retransmission execute twice) and
+its ACK is dropped on arrival (its QUEUE_STATUS is kept for ``poll()``).
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -51,7 +59,11 @@ class BenchClient:
         self.retransmissions = 0
         self.late_dropped = 0
         self.last_tx_wall = time.monotonic()
+        self.last_read_wall = time.monotonic()   # when the owner last read the port (wall s)
         self.on_wait: Callable[[], None] | None = None
+        self._io = threading.RLock()   # the port, the sequence numbers, _in_flight
+        self._in_flight = False        # a command waits for its ACK (no keepalive in between)
+        self._keepalive_seqs: deque[int] = deque(maxlen=64)   # keepalives whose ACK is dropped
         self._seq = 0
         self._decoder = MessageDecoder()
         self._sequencer = FrameSequencer()
@@ -86,15 +98,17 @@ class BenchClient:
 
     def _read(self) -> list[NamedTuple]:
         try:
-            waiting = self.port.in_waiting
-            # read(1) blocks up to the port timeout when nothing is waiting
-            if self._read_frames is not None:   # an in-process simulated device: frames as they are
-                frames = self._read_frames(min(max(1, waiting), READ_CHUNK))
-            else:
-                data = self.port.read(min(max(1, waiting), READ_CHUNK))
-                frames = self._decoder.feed(data) if data else []
+            with self._io:
+                waiting = self.port.in_waiting
+                # read(1) blocks up to the port timeout when nothing is waiting
+                if self._read_frames is not None:   # an in-process simulated device: frames as they are
+                    frames = self._read_frames(min(max(1, waiting), READ_CHUNK))
+                else:
+                    data = self.port.read(min(max(1, waiting), READ_CHUNK))
+                    frames = self._decoder.feed(data) if data else []
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
+        self.last_read_wall = time.monotonic()
         if self._read_frames is not None:   # in process: in order and none lost (checked at its ends)
             frames = self._sequencer.push_consecutive(frames)
             out = [f.message for f in frames]
@@ -103,6 +117,8 @@ class BenchClient:
         else:
             frames = self._sequencer.push(frames)
             out = expand(f.message for f in frames)   # a SAMPLE_BLOCK becomes its samples
+            if self._keepalive_seqs:
+                out = [m for m in out if not self._keepalive_ack(m)]
         for late in self._sequencer.take_late():
             if isinstance(late.message, msg.Ack):
                 self._late_acks.append(late.message)  # may still answer the command awaited now
@@ -117,13 +133,37 @@ class BenchClient:
 
     def _write(self, frame: bytes, seq: int | None = None, message: NamedTuple | None = None) -> None:
         try:
-            if self._write_frame is not None and message is not None:
-                self._write_frame(frame, seq, message)
-            else:
-                self.port.write(frame)
+            with self._io:
+                if self._write_frame is not None and message is not None:
+                    self._write_frame(frame, seq, message)
+                else:
+                    self.port.write(frame)
+                self.last_tx_wall = time.monotonic()
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
-        self.last_tx_wall = time.monotonic()
+
+    def _keepalive_ack(self, m: NamedTuple) -> bool:
+        if type(m) is not msg.Ack:
+            return False
+        with self._io:
+            if m.acked_seq in self._keepalive_seqs:
+                self._keepalive_seqs.remove(m.acked_seq)
+                return True
+        return False
+
+    def send_keepalive(self, quiet_s: float) -> bool:
+        """From any thread: send HEARTBEAT (not waiting for its ACK) if nothing was sent for
+        ``quiet_s`` of wall time and no command waits for its ACK. True if it was sent.
+        Only for a byte port (a real line, a pty); False on ``sim://`` in this process."""
+        if self._write_frame is not None:
+            return False
+        with self._io:
+            if self._in_flight or time.monotonic() - self.last_tx_wall < quiet_s:
+                return False
+            seq = self._next_seq()
+            self._keepalive_seqs.append(seq)
+            self._write(encode(msg.Heartbeat(), seq))
+            return True
 
     def _port_name(self) -> str:
         return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
@@ -189,8 +229,9 @@ class BenchClient:
                 "from this checkout (make -C firmware flash) or install the matching tsa-bench")
 
     def _next_seq(self) -> int:
-        self._seq = (self._seq + 1) & 0xFFFF
-        return self._seq
+        with self._io:
+            self._seq = (self._seq + 1) & 0xFFFF
+            return self._seq
 
     def _await(self, predicate, timeout_s: float) -> NamedTuple | None:
         """Read until a message matching ``predicate`` arrives; keep the others.
@@ -231,7 +272,15 @@ class BenchClient:
         With ``check`` a NAK raises :class:`CommandRefused`; otherwise it is returned.
         """
         spec = spec_of(message)
-        seq = self._next_seq()
+        with self._io:
+            self._in_flight = True
+            seq = self._next_seq()
+        try:
+            return self._transact(message, spec, seq, check)
+        finally:
+            self._in_flight = False
+
+    def _transact(self, message: NamedTuple, spec: Any, seq: int, check: bool) -> msg.Ack:
         frame = encode(message, seq) if self._write_frame is None else b""  # in-process: no bytes
         wall0, dev0 = time.monotonic(), self._last_dev_us
         transmissions = 0

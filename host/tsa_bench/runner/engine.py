@@ -40,10 +40,12 @@ import math
 import signal
 from array import array
 import time
+from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple, Sequence
 
 from tsa_bench.bench import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
+from tsa_bench.device.keepalive import Keepalive
 from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.protocol.blocks import refusal_reason
@@ -140,6 +142,8 @@ class Runner:
         self._segments_done = 0
         self._bursts = Bursts()         # which QUEUE_EMPTY is an underrun (runner/underrun.py)
         self._pacing = Pacing(client, plan, self.ident)   # heartbeats, batched delivery (runner/pacing.py)
+        # a line's watchdog fed from a thread of its own (in process, sim:// keeps the device's time)
+        self._keepalive = None if self._pacing.device_clock else Keepalive(client, self._pacing.heartbeat_wall_s)
         self._tracking = Tracking.for_plan(plan, self.spt)   # track_length segments (runner/tracking.py)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
@@ -194,6 +198,8 @@ class Runner:
         status, reason = "success", "all segments done"
         installed_here = self.interrupts.install()
         self.client.on_wait = self.interrupts.check
+        if self._keepalive is not None:
+            self._keepalive.start()
         try:
             try:
                 self._emit("on_start", start)
@@ -239,9 +245,15 @@ class Runner:
                     pass
             return stop
         finally:
+            if self._keepalive is not None:
+                self._keepalive.stop()
             self.client.on_wait = None
             if installed_here:
                 self.interrupts.restore()
+
+    def _attended(self) -> AbstractContextManager:
+        """A wait for a person: the keepalive goes on however long it takes."""
+        return self._keepalive.attended() if self._keepalive is not None else nullcontext()
 
     def _signal_name(self) -> str:
         sig = self.interrupts.last_signal
@@ -252,7 +264,8 @@ class Runner:
         while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
             self._pump()
         try:                                # moves need a known twist zero
-            settle_position(self.client, self.operator, self._last_status, self.spt, self._event)
+            with self._attended():
+                settle_position(self.client, self.operator, self._last_status, self.spt, self._event)
         except PositionUnknown as exc:
             raise RunFailed(str(exc)) from None
         if self.simulated and plan_load_known(self._load_g):
@@ -394,7 +407,7 @@ class Runner:
         t_start = self._t(self._now_us)
         self._prompt_segment = seg.index
         self._event("prompt", a.text)
-        with self.interrupts.immediate():  # a person may take minutes: Ctrl-C must not wait
+        with self.interrupts.immediate(), self._attended():  # a person may take minutes: Ctrl-C must not wait
             self.operator.answer(a.text, a.load_g)
         if a.load_g is not None:
             self._load_g = float(a.load_g)
@@ -604,4 +617,4 @@ class Runner:
                 self._later[:0] = [(0, nm, d) for _, nm, d in docs[i + 1:]]  # still emitted by the closing flush
                 raise
         if outside:
-            raise RunFailed(f"host error: {outside}")
+            raise RunFailed(f"host bug: {outside}")
