@@ -120,3 +120,29 @@ def test_a_plan_past_the_16_bit_wire_field_stores_every_sample_in_its_segment(tm
     assert np.all(t[mine] >= start[k] - 1e-9) and np.all(t[mine] <= start[k + 1] + 1e-9)
     assert k.max() == n - 1 and np.any(k > 65_535)   # samples on both sides of the wrap, to the end
     assert not np.any(events["kind"] == b"queue_underrun"), events[events["kind"] == b"queue_underrun"][:3]
+
+
+def test_a_segment_index_outside_the_plan_is_never_stored(tmp_path, monkeypatch):
+    """The runner's last check before a block reaches the writer: a sample naming a
+    segment the plan does not have (a host bug) is stored as -1, its data kept, and the
+    run ends failed saying so."""
+    from tsa_bench.runner import engine
+
+    real = engine.sample_block
+    state = {"blocks": 0}
+
+    def shifted(*args, **kwargs):
+        block = real(*args, **kwargs)
+        state["blocks"] += 1
+        if state["blocks"] == 2:
+            block.columns["segment"][:3] += 65_535   # the old unwrap's mistake
+        return block
+
+    monkeypatch.setattr(engine, "sample_block", shifted)
+    plan = plan_from_text(BOUNDARIES.format(period=0.02))
+    stop, _, path = run_plan(plan, tmp_path, block_samples=16)
+    assert stop.exit_status == "failed" and "outside the plan" in stop.reason, stop.reason
+    with h5py.File(path) as f:
+        seg = f["samples"]["segment"][()]
+        assert len(seg) == stop.samples   # nothing dropped
+    assert seg.max() < len(plan.segments) and seg.min() >= -1

@@ -37,6 +37,7 @@ class Keepalive:
             raise ValueError(f"period_s and max_stall_s must be positive, got {period_s} and {max_stall_s}")
         self.client, self.period_s, self.max_stall_s = client, period_s, max_stall_s
         self.sent = 0            # keepalives sent
+        self.checks = 0          # times the thread looked whether one was due
         self.errors: list[str] = []   # why sending failed (the owner sees a lost line itself)
         self._attended = 0
         self._stop = threading.Event()
@@ -72,6 +73,7 @@ class Keepalive:
     def _loop(self) -> None:
         check_s = self.period_s / 4
         while not self._stop.wait(check_s):
+            self.checks += 1
             if not self._attended and time.monotonic() - self.client.last_read_wall > self.max_stall_s:
                 continue   # the owner is stuck: let the device's watchdog act
             try:
