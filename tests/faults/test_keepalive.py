@@ -28,16 +28,17 @@ from tsa_bench.protocol import msg
 from tsa_bench.runner import AutoOperator, Runner
 from tsa_bench.store import RunWriter
 
-#: 20 holds of 0.1 s: the device's 16-command queue lasts 1.6 s, less than the stall.
+#: 60 holds of 0.05 s: the device's 16-command queue lasts 0.8 s, less than the stall,
+#: and the plan lasts longer than the first 1.5 s (the host has more to send when it stalls).
 HOLDS = """name: holds
 sampling_period_s: 0.05
 defaults: {rate_turns_per_s: 5, accel_turns_per_s2: 50}
 steps:
   - move_to: {turns: 1}
   - repeat:
-      count: 20
+      count: 60
       steps:
-        - hold: {duration_s: 0.1}
+        - hold: {duration_s: 0.05}
   - move_to: {turns: 0}
 """
 
@@ -89,7 +90,7 @@ def test_a_main_thread_stalled_for_3_s_keeps_the_run_healthy(native_binary, tmp_
         n = int(f.attrs["n_segments"])
     # the device ran its queue dry meanwhile: an underrun, after a segment of the plan
     underruns = [e["detail"].decode() for e in events if e["kind"] == b"queue_underrun"]
-    assert underruns, "the 3 s stall outlasted the 1.6 s queue: the device must have run dry"
+    assert underruns, "the 3 s stall outlasted the 0.8 s queue: the device must have run dry"
     for detail in underruns:
         idx = int(detail.split("after segment ")[1].split()[0])
         assert 0 <= idx < n - 1, detail

@@ -98,14 +98,13 @@ class BenchClient:
 
     def _read(self) -> list[NamedTuple]:
         try:
-            with self._io:
-                waiting = self.port.in_waiting
-                # read(1) blocks up to the port timeout when nothing is waiting
-                if self._read_frames is not None:   # an in-process simulated device: frames as they are
-                    frames = self._read_frames(min(max(1, waiting), READ_CHUNK))
-                else:
-                    data = self.port.read(min(max(1, waiting), READ_CHUNK))
-                    frames = self._decoder.feed(data) if data else []
+            if self._read_frames is not None:   # an in-process simulated device: frames as they are
+                frames = self._read_frames(min(max(1, self.port.in_waiting), READ_CHUNK))  # (no keepalive thread)
+            else:
+                with self._io:
+                    # read(1) blocks up to the port timeout when nothing is waiting
+                    data = self.port.read(min(max(1, self.port.in_waiting), READ_CHUNK))
+                frames = self._decoder.feed(data) if data else []
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
         self.last_read_wall = time.monotonic()
@@ -133,12 +132,13 @@ class BenchClient:
 
     def _write(self, frame: bytes, seq: int | None = None, message: NamedTuple | None = None) -> None:
         try:
-            with self._io:
-                if self._write_frame is not None and message is not None:
-                    self._write_frame(frame, seq, message)
-                else:
-                    self.port.write(frame)
+            if self._write_frame is not None and message is not None:
+                self._write_frame(frame, seq, message)
                 self.last_tx_wall = time.monotonic()
+            else:
+                with self._io:
+                    self.port.write(frame)
+                    self.last_tx_wall = time.monotonic()
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
 
@@ -229,9 +229,9 @@ class BenchClient:
                 "from this checkout (make -C firmware flash) or install the matching tsa-bench")
 
     def _next_seq(self) -> int:
-        with self._io:
-            self._seq = (self._seq + 1) & 0xFFFF
-            return self._seq
+        """The next sequence number (a thread sending on a byte port holds ``_io``)."""
+        self._seq = (self._seq + 1) & 0xFFFF
+        return self._seq
 
     def _await(self, predicate, timeout_s: float) -> NamedTuple | None:
         """Read until a message matching ``predicate`` arrives; keep the others.
@@ -272,16 +272,19 @@ class BenchClient:
         With ``check`` a NAK raises :class:`CommandRefused`; otherwise it is returned.
         """
         spec = spec_of(message)
-        with self._io:
-            self._in_flight = True
-            seq = self._next_seq()
+        if self._write_frame is None:
+            with self._io:
+                self._in_flight = True
+                seq = self._next_seq()
+            frame = encode(message, seq)
+        else:   # in process: no bytes, no keepalive thread
+            seq, frame = self._next_seq(), b""
         try:
-            return self._transact(message, spec, seq, check)
+            return self._transact(message, spec, seq, frame, check)
         finally:
             self._in_flight = False
 
-    def _transact(self, message: NamedTuple, spec: Any, seq: int, check: bool) -> msg.Ack:
-        frame = encode(message, seq) if self._write_frame is None else b""  # in-process: no bytes
+    def _transact(self, message: NamedTuple, spec: Any, seq: int, frame: bytes, check: bool) -> msg.Ack:
         wall0, dev0 = time.monotonic(), self._last_dev_us
         transmissions = 0
         while True:

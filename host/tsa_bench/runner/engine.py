@@ -25,13 +25,21 @@ bring the rig to the state the plan had there (sampling period, twist, heater, l
 
 Pacing (:mod:`tsa_bench.runner.pacing`): when to heartbeat, and where a simulated device
 in this process may deliver in batches (open-loop stretches; the recorded run is the same).
+On a line, a :class:`~tsa_bench.device.keepalive.Keepalive` thread also heartbeats while the
+run's thread is busy (started with the run, stopped on every way out; prompts are waits
+for a person, not stalls).
 Samples are handed over in blocks of exactly ``block_samples`` rows (or what came within
 ``BLOCK_WALL_S`` of wall time), each followed by the documents received after its rows.
 
 Link: samples are stored in counter order, each once: a sample whose counter is not
 after the last stored one (a duplicate or a late frame the link layer let through) is
 dropped and counted (``samples_discarded``), and ``samples_lost`` is exactly the sum of
-the counter gaps in the stored rows.
+the counter gaps in the stored rows. Segment indices: the device's 16-bit index is
+unwrapped to the plan segment nearest the oldest one not done
+(:func:`~tsa_bench.runner.commands.plan_segment`), and every block is checked before a
+consumer gets it: an index outside the plan is stored as -1 and fails the run. A
+QUEUE_EMPTY is recorded as ``queue_underrun`` only when it follows the last command of a
+burst (:mod:`tsa_bench.runner.underrun`).
 """
 
 from __future__ import annotations
