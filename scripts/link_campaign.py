@@ -21,10 +21,11 @@ Two more sections (issue 33):
   (target 0) and rows whose segment is not the one the device named;
 * ``loaded``: link trials on wall-clock devices (the simulated bench over a pty at real
   time, the firmware at --speed 1) with the campaign's frame faults and no stall, beside
-  two processes that burn CPU: every one should succeed.
+  two processes that burn CPU, and more whose main thread also sleeps 2.5 s once (a slow
+  consumer: more than the device's 2 s watchdog): every one should succeed.
 
     PYTHONPATH=host python3 scripts/link_campaign.py [--runs 20] [--seed 0] [--no-firmware] [--no-pty]
-        [--sections faults,reorder,loaded] [--reorder-runs 60] [--loaded-runs 30]
+        [--sections faults,reorder,loaded] [--reorder-runs 60] [--loaded-runs 30] [--stalled-runs 10]
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ import serial  # noqa: E402
 from tests.faults.checks import check_rows_against_device  # noqa: E402
 from tests.faults.ptybench import quick_bench, relayed_sim  # noqa: E402
 from tests.faults.relay import CAMPAIGN, REORDER, FaultyPort, LinkFaults  # noqa: E402
+from tests.faults.test_keepalive import Stall  # noqa: E402
 from tests.faults.test_segments import BOUNDARIES  # noqa: E402
 from tests.firmware.native_port import NativeFirmwarePort  # noqa: E402
 from tests.runner.helpers import BENCH, open_sim, plan_from_text  # noqa: E402
@@ -75,9 +77,10 @@ def conditions(rng: random.Random, wall: bool) -> dict[str, LinkFaults]:
 
 
 def run_once(kind: str, faults: LinkFaults, tmp: Path, seed: int, native: Path | None, plan_text: str = SHORT,
-             wall_clock: bool = False):
+             wall_clock: bool = False, consumers: tuple = ()):
     """One run through the relay on ``kind`` (sim, pty, firmware); ``wall_clock``: the
-    device keeps real time (pty at speed 1, the firmware at --speed 1)."""
+    device keeps real time (pty at speed 1, the firmware at --speed 1); ``consumers``
+    besides the writer."""
     plan = plan_from_text(plan_text)
     path = tmp / "run.h5"
     if kind == "pty":
@@ -87,7 +90,7 @@ def run_once(kind: str, faults: LinkFaults, tmp: Path, seed: int, native: Path |
                 serial.Serial(relay.path, bench.baud, timeout=0.05) as port:
             client = BenchClient(port, ack_timeout_s=bench.ack_timeout_s, watchdog_s=bench.watchdog_s)
             client.connect(bench.boot_timeout_s)
-            stop = Runner(client, plan, bench, [RunWriter(path)], AutoOperator(), backend="serial",
+            stop = Runner(client, plan, bench, [RunWriter(path), *consumers], AutoOperator(), backend="serial",
                           port_name=relay.path).run()
             return stop, relay.link
     if kind == "sim":
@@ -97,7 +100,8 @@ def run_once(kind: str, faults: LinkFaults, tmp: Path, seed: int, native: Path |
     try:
         client = BenchClient(port, ack_timeout_s=BENCH.ack_timeout_s, watchdog_s=BENCH.watchdog_s)
         client.connect(2.0)
-        stop = Runner(client, plan, BENCH, [RunWriter(path)], AutoOperator(), backend=kind, port_name=kind).run()
+        stop = Runner(client, plan, BENCH, [RunWriter(path), *consumers], AutoOperator(), backend=kind,
+                      port_name=kind).run()
     finally:
         port.close()
     return stop, port.link
@@ -112,6 +116,8 @@ def main() -> int:
     ap.add_argument("--sections", default="faults,reorder,loaded", help="which sections, comma-separated")
     ap.add_argument("--reorder-runs", type=int, default=60, help="relay runs with swaps and delays")
     ap.add_argument("--loaded-runs", type=int, default=30, help="link trials beside two CPU burners")
+    ap.add_argument("--stalled-runs", type=int, default=10,
+                    help="more link trials beside the burners, the main thread stalled 2.5 s once")
     args = ap.parse_args()
     sections = set(args.sections.split(","))
     rng = random.Random(args.seed)
@@ -131,7 +137,7 @@ def main() -> int:
     if "reorder" in sections and wall_kinds:
         bad += reorder_section(args.reorder_runs, rng, wall_kinds, native)
     if "loaded" in sections and wall_kinds:
-        bad += loaded_section(args.loaded_runs, rng, wall_kinds, native)
+        bad += loaded_section(args.loaded_runs, args.stalled_runs, rng, wall_kinds, native)
     print("every run succeeded or failed cleanly; 0 wrong or duplicated rows; samples_lost = counter gaps"
           if not bad else f"{bad} runs broke the link contract")
     return 0 if not bad else 1
@@ -222,38 +228,43 @@ def reorder_section(runs: int, rng: random.Random, kinds: list[str], native: Pat
     return totals["outside"] + totals["runs with a wrong row"] + sum(others.values())
 
 
-def loaded_section(runs: int, rng: random.Random, kinds: list[str], native: Path | None) -> int:
-    """Runs that should succeed, on wall-clock devices, beside two CPU-burning processes."""
-    print(f"\nloaded: {runs} link trials (campaign frame faults, no stall) on wall-clock devices beside two "
-          "CPU-burning processes")
+def loaded_section(runs: int, stalled: int, rng: random.Random, kinds: list[str], native: Path | None) -> int:
+    """Runs that should succeed, on wall-clock devices, beside two CPU-burning processes;
+    then ``stalled`` more whose main thread also sleeps 2.5 s once (a slow consumer)."""
+    print(f"\nloaded: {runs} link trials (campaign frame faults, no line stall) on wall-clock devices beside two "
+          f"CPU-burning processes, then {stalled} more whose main thread also stalls 2.5 s once")
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    outcome: Counter[str] = Counter()
-    wrong = 0
+    bad = 0
     try:
-        for i in range(runs):
-            kind = kinds[i % len(kinds)]
-            faults = LinkFaults(to_host=CAMPAIGN, to_device=CAMPAIGN, seed=rng.getrandbits(32))
-            with tempfile.TemporaryDirectory() as d:
-                try:
-                    stop, link = run_once(kind, faults, Path(d), rng.randrange(10**6), native,
-                                          BOUNDARIES.format(period=0.02), wall_clock=True)
-                except Exception as exc:
-                    outcome[f"{kind}: CRASH {type(exc).__name__}: {exc}"] += 1
-                    continue
-                outcome["success" if stop.exit_status == "success" else f"{kind}: {stop.reason}"] += 1
-                try:
-                    check_rows_against_device(Path(d) / "run.h5", link.device_frames.samples())
-                except AssertionError:
-                    wrong += 1
+        for label, n, stall_s in (("loaded", runs, 0.0), ("loaded + 2.5 s main-thread stall", stalled, 2.5)):
+            outcome: Counter[str] = Counter()
+            wrong = 0
+            for i in range(n):
+                kind = kinds[i % len(kinds)]
+                faults = LinkFaults(to_host=CAMPAIGN, to_device=CAMPAIGN, seed=rng.getrandbits(32))
+                with tempfile.TemporaryDirectory() as d:
+                    try:
+                        stop, link = run_once(kind, faults, Path(d), rng.randrange(10**6), native,
+                                              BOUNDARIES.format(period=0.02), wall_clock=True,
+                                              consumers=(Stall(stall_s, after_s=1.0),) if stall_s else ())
+                    except Exception as exc:
+                        outcome[f"{kind}: CRASH {type(exc).__name__}: {exc}"] += 1
+                        continue
+                    outcome["success" if stop.exit_status == "success" else f"{kind}: {stop.reason}"] += 1
+                    try:
+                        check_rows_against_device(Path(d) / "run.h5", link.device_frames.samples())
+                    except AssertionError:
+                        wrong += 1
+            failed = {k: v for k, v in outcome.items() if k != "success"}
+            print(f"  {label}: trials {n}, successes {outcome['success']} (target {n}), runs with a wrong row {wrong}")
+            if failed:
+                print(f"    not successes: {failed}")
+            bad += sum(failed.values()) + wrong
     finally:
         for p in burners:
             p.kill()
             p.wait()
-    failed = {k: v for k, v in outcome.items() if k != "success"}
-    print(f"  trials {runs}, successes {outcome['success']} (target {runs}), runs with a wrong row {wrong}")
-    if failed:
-        print(f"  not successes: {failed}")
-    return sum(failed.values()) + wrong
+    return bad
 
 
 if __name__ == "__main__":

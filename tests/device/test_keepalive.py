@@ -11,7 +11,7 @@ import pytest
 from tests.device.test_client import ScriptedPort, identity
 from tsa_bench.device import BenchClient, NoAcknowledgement
 from tsa_bench.device.keepalive import Keepalive
-from tsa_bench.protocol import msg
+from tsa_bench.protocol import encode, msg
 
 
 def _status(f):
@@ -30,14 +30,13 @@ def test_no_keepalive_goes_out_while_a_command_waits_for_its_ack():
     with Keepalive(client, period_s=0.005) as keepalive:
         with pytest.raises(NoAcknowledgement):
             client.command(msg.MoveBy(0, 100, 1000, 1000))
-        deadline = time.monotonic() + 10
-        while keepalive.sent == 0 and time.monotonic() < deadline:   # afterwards it does go out
-            time.sleep(0.01)
+        before = keepalive.sent
+        _until(lambda: keepalive.sent > before, "a keepalive once the command gave up")
     kinds = [type(f.message) for f in port.received[1:]]
     first, last = kinds.index(msg.MoveBy), len(kinds) - 1 - kinds[::-1].index(msg.MoveBy)
     assert last > first   # retransmitted
     assert msg.Heartbeat not in kinds[first:last], kinds[first:last + 1]
-    assert keepalive.sent > 0 and msg.Heartbeat in kinds[last:]
+    assert msg.Heartbeat in kinds[last:]
 
 
 def test_a_keepalive_ack_never_reaches_the_owner_its_status_does():
@@ -71,3 +70,30 @@ def test_the_keepalive_stops_when_the_owner_has_not_read_for_its_limit():
         assert keepalive.sent == stalled      # 20 looks, none sent
         with keepalive.attended():   # waiting for a person: on again however long it takes
             _until(lambda: keepalive.sent > stalled, "a keepalive while the owner waits for a person")
+
+
+def test_a_backlog_after_a_busy_host_is_not_a_device_that_stopped_answering():
+    """After a 3 s stall of the host the port holds 3 s of samples: reading them takes no
+    time, the device waited for nothing. A command whose first two transmissions go
+    unanswered is retransmitted within the retry budget (wall time), not given up
+    because the backlog's timestamps span more than the budget (it was, after two)."""
+    transmissions = []
+
+    def heartbeat(f):
+        transmissions.append(f.seq)
+        return _status(f) if len(transmissions) >= 3 else []
+
+    client, port = _connected({msg.Heartbeat: heartbeat})
+    client.watchdog_s = 2.0                        # retry budget 2.1 s
+
+    def sample(i: int) -> bytes:                   # the device's next frame: a sample every 50 ms
+        port._seq += 1
+        return encode(msg.Sample(i, 1_000_000 + 50_000 * i, 0, 0, 0, 0, 0, 0, 0), port._seq)
+
+    port._rx += sample(0)
+    assert len(client.poll()) == 1                 # the last sample read before the stall
+    for i in range(1, 61):                         # 3 s of samples, waiting in the port
+        port._rx += sample(i)
+    ack = client.command(msg.Heartbeat())
+    assert ack.status == msg.Status.OK and len(transmissions) == 3
+    assert [m.counter for m in client.poll() if isinstance(m, msg.Sample)] == list(range(1, 61))  # kept, in order

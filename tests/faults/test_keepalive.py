@@ -7,6 +7,7 @@ is not a stall; the thread ends on every way out of a run, and STOP still goes o
 from __future__ import annotations
 
 import os
+import re
 import signal
 import sys
 import threading
@@ -104,6 +105,10 @@ def test_a_host_stalled_past_the_keepalive_limit_is_left_to_the_device_watchdog(
     monkeypatch.setattr(keepalive, "MAX_STALL_S", 1.0)
     stop, port = _on_firmware(native_binary, tmp_path, Stall(4.0))
     assert stop.exit_status == "failed" and "watchdog" in stop.reason, stop.reason
+    # the fault names the plan segment the device was in (the last one it ran, done
+    # before the host read the fault: it was named 65,535 further on)
+    named = re.search(r"\(segment (\d+)\)", stop.reason)
+    assert named and int(named.group(1)) < len(plan_from_text(HOLDS).segments), stop.reason
     check_rows_against_device(tmp_path / "fw.h5", port.link.device_frames.samples())
     assert not _keepalive_threads()
 

@@ -8,8 +8,9 @@ waits for its ACK, retransmitting the identical frame on timeout (the device
 recognises the repeated sequence number and does not execute it twice) for as long
 as the device's watchdog could still be waiting for it (the retry budget: the
 watchdog period plus two ACK timeouts; IDENTITY's ``watchdog_ms``, the bench file's
-``watchdog_s`` before the handshake), so a line that stalls for less than the
-watchdog never fails a command. Every other message that arrives meanwhile is kept,
+``watchdog_s`` before the handshake, in wall time: after a busy spell of the host, what
+waited in the port spans device time the device did not spend waiting), so a line that
+stalls for less than the watchdog never fails a command. Every other message that arrives meanwhile is kept,
 in order, for ``poll()``. A port that offers ``read_frames``/``write_frame`` (``sim://``: the simulated device
 in this process) hands over decoded frames instead of bytes, read in the same sizes.
 Device frames pass the link layer first
@@ -285,7 +286,7 @@ class BenchClient:
             self._in_flight = False
 
     def _transact(self, message: NamedTuple, spec: Any, seq: int, frame: bytes, check: bool) -> msg.Ack:
-        wall0, dev0 = time.monotonic(), self._last_dev_us
+        wall0 = time.monotonic()
         transmissions = 0
         while True:
             if transmissions:
@@ -300,9 +301,9 @@ class BenchClient:
                                          f"{msg.Status(ack.status).name.lower()}"
                                          f"{refusal_reason(message, ack.status)}")
                 return ack
+            # giving up is judged in wall time only: after the host was busy, what waited in
+            # the port spans seconds of device time without the device having waited at all
             waited_s = time.monotonic() - wall0
-            if dev0 is not None and self._last_dev_us is not None:
-                waited_s = max(waited_s, (self._last_dev_us - dev0) / 1e6)
             if transmissions >= 2 and waited_s >= self.retry_budget_s:
                 raise NoAcknowledgement(
                     f"no ACK for {spec.name} after {transmissions} transmissions over {waited_s:.2f} s on "

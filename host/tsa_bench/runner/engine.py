@@ -331,7 +331,7 @@ class Runner:
         try:
             self._feed_burst()
         finally:
-            self._bursts.end()
+            self._bursts.end(self._oldest)
 
     def _feed_burst(self) -> None:
         segs = self.plan.segments

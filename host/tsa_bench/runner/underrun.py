@@ -32,11 +32,17 @@ class Bursts:
         self._last = (segment, last[1] + 1 if last is not None and last[0] == segment else 1)
         self._in_burst = True
 
-    def end(self) -> None:
-        """The feeding loop stopped sending (its burst, if it sent anything, ends here)."""
+    def end(self, oldest: int) -> None:
+        """The feeding loop stopped sending (its burst, if it sent anything, ends here);
+        ``oldest``: the oldest segment not done (the device's QUEUE_EMPTY after the one
+        before it may still come; ends before that are forgotten, so a run that never runs
+        dry keeps only a few)."""
         if self._in_burst and self._last is not None:
             self._ends.append(self._last)
         self._in_burst = False
+        ends = self._ends
+        while ends and ends[0][0] < oldest - 1:
+            ends.popleft()
 
     def ran_dry_after(self, segment: int, part: int) -> bool:
         """QUEUE_EMPTY after ``part`` of ``segment``: True if that command ended a burst."""
