@@ -16,6 +16,7 @@ import time
 import h5py
 import numpy as np
 import pytest
+import serial
 
 from tests.faults.checks import check_rows_against_device
 from tests.faults.ptybench import quick_bench, relayed_sim
@@ -24,7 +25,7 @@ from tests.faults.test_link_firmware import native_binary  # noqa: F401 (fixture
 from tests.firmware.native_port import NativeFirmwarePort
 from tests.runner.helpers import BENCH, plan_from_text
 from tsa_bench.bench import load_bench
-from tsa_bench.device import BenchClient, keepalive
+from tsa_bench.device import BenchClient
 from tsa_bench.protocol import msg
 from tsa_bench.runner import AutoOperator, Runner
 from tsa_bench.store import RunWriter
@@ -102,7 +103,7 @@ def test_a_host_stalled_past_the_keepalive_limit_is_left_to_the_device_watchdog(
         native_binary, tmp_path, monkeypatch):  # noqa: F811
     """The keepalive is for a host that is alive: stalled longer than its limit (here 1 s)
     it stops, and the device stops motor and heater itself after its 2 s watchdog."""
-    monkeypatch.setattr(keepalive, "MAX_STALL_S", 1.0)
+    monkeypatch.setattr("tsa_bench.device.keepalive.MAX_STALL_S", 1.0)
     stop, port = _on_firmware(native_binary, tmp_path, Stall(4.0))
     assert stop.exit_status == "failed" and "watchdog" in stop.reason, stop.reason
     # the fault names the plan segment the device was in (the last one it ran, done
@@ -116,7 +117,7 @@ def test_a_host_stalled_past_the_keepalive_limit_is_left_to_the_device_watchdog(
 def test_an_operator_prompt_longer_than_the_watchdog_is_not_a_stall(native_binary, tmp_path, monkeypatch):  # noqa: F811
     """The device samples while the operator changes the load: a 3 s answer (more than
     the watchdog, more than the keepalive's stall limit, here 1 s) keeps the run going."""
-    monkeypatch.setattr(keepalive, "MAX_STALL_S", 1.0)
+    monkeypatch.setattr("tsa_bench.device.keepalive.MAX_STALL_S", 1.0)
     text = HOLDS.replace("  - repeat:", "  - prompt: {text: hang 100 g, load_g: 100}\n  - repeat:")
     operator = SlowOperator(3.0)
     stop, port = _on_firmware(native_binary, tmp_path, Stall(0.0), text, operator)
@@ -167,7 +168,7 @@ def test_the_keepalive_thread_ends_on_every_way_out_and_stop_still_goes_out(tmp_
         consumers.append(_Raising(way))
     faults = LinkFaults(stalls=((1.0, 30.0),)) if way == "dead line" else LinkFaults()  # a dead line
     with relayed_sim(quick_bench(tmp_path), faults, speed=1.0 if way == "dead line" else None) as relay:
-        with __import__("serial").Serial(relay.path, bench.baud, timeout=0.05) as ser:
+        with serial.Serial(relay.path, bench.baud, timeout=0.05) as ser:
             client = BenchClient(ser, ack_timeout_s=bench.ack_timeout_s, watchdog_s=bench.watchdog_s)
             client.connect(bench.boot_timeout_s)
             runner = Runner(client, plan, bench, consumers, AutoOperator(), backend="serial", port_name=relay.path,

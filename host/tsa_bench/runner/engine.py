@@ -108,7 +108,7 @@ class Runner:
         self.simulated = bool(self.ident.flags & msg.DeviceFlags.SIMULATED)
         self.resume = resume
         self.metadata = {**plan.metadata, **(metadata or {})}
-        n = len(plan.segments)
+        n = self._n_segments = len(plan.segments)
         first = resume.first_segment if resume is not None else 0
         if not 0 <= first <= n:
             raise ValueError(f"resume segment {first} is outside the plan's {n} segments")
@@ -513,7 +513,7 @@ class Runner:
         else:
             oldest = self._oldest
             seg = oldest + (wire - oldest + _HALF_WIRE) % WIRE_SEGMENTS - _HALF_WIRE
-            if not 0 <= seg < len(self._done):
+            if seg >= self._n_segments or seg < 0:
                 seg = -1
         # a row for sample_block (runner/samples.py row(), inline: once per sample)
         self._rows.append((t_us, step_position, position_raw, resistance_raw, adc_flags, heater_mV, motor_moving, seg,
