@@ -5,7 +5,7 @@
 //              [--realtime FACTOR] [--max-seconds S] [--cs5513-conversion-us 19125]
 //              [--bootloader ELF|HEX|none] [--enable-pull down|up] [--backdrive-steps-per-s N]
 //              [--twi-fault SPEC]... [--ads-rate-error X] [--trace FILE] [--hang-at S]
-//              [--hang-masked 0|1] [--usb-serial 0|1]
+//              [--hang-masked 0|1] [--rdy-cut T0[:T1]]... [--usb-serial 0|1]
 //
 // Contract. Opens the pty (uart_bridge), connects to the plant, then holds the AVR in
 // reset until the plant sends 'G' (the host has the port open: like the DTR reset of
@@ -19,10 +19,12 @@
 // chip runs through, 0xFFFF after 0xFFFF, into the boot section: here a jump to it).
 // SIGUSR1 is the DTR pulse of a host opening the port again (external reset, EXTRF);
 // with --usb-serial 1 the port behaves as the Mega's USB-serial chip (uart_bridge.c) and
-// the host's opening the port is that pulse. A watchdog reset comes from simavr's WDT. After any reset the rig's parts carry on (they are not reset)
+// the host's opening the port is that pulse. SIGUSR2 is a brown-out (BORF, SRAM kept,
+// the A4988's translator back at Home); a watchdog reset comes from simavr's WDT. After
+// any reset the rig's parts carry on (they are not reset)
 // and re-arm their timers. --hang-at S makes the main loop hang at S s of device time
 // (a `rjmp .` loop entered with interrupts enabled, outside any ISR), as a firmware bug
-// would, to exercise the watchdog (SIGUSR2: at once); with --hang-masked 1 the loop runs
+// would, to exercise the watchdog (SIGRTMIN: at once); with --hang-masked 1 the loop runs
 // with interrupts masked (a hang inside an ISR or an atomic block). The watchdog in interrupt-and-reset
 // mode resets the chip when its interrupt was not served before the next time-out, as
 // the datasheet says (simavr 1.6 would raise the interrupt forever). Pacing: device time never runs more than --lead-ms past the device time of
@@ -57,6 +59,7 @@
 
 static volatile sig_atomic_t g_stop = 0;
 static volatile sig_atomic_t g_dtr = 0;
+static volatile sig_atomic_t g_brown = 0;
 static volatile sig_atomic_t g_hang_now = 0;
 static void on_signal(int sig) { g_stop = sig; }
 static void on_usr1(int sig) {
@@ -64,6 +67,10 @@ static void on_usr1(int sig) {
     g_dtr = 1;
 }
 static void on_usr2(int sig) {
+    (void)sig;
+    g_brown = 1;
+}
+static void on_hang_now(int sig) {
     (void)sig;
     g_hang_now = 1;
 }
@@ -92,7 +99,8 @@ static void usage(const char *msg) {
                     "  [--lead-ms MS] [--host-gone-ms MS] [--realtime FACTOR] [--max-seconds S]\n"
                     "  [--cs5513-conversion-us US] [--bootloader ELF|none] [--enable-pull down|up]\n"
                     "  [--backdrive-steps-per-s N] [--twi-fault SPEC]... [--ads-rate-error X]\n"
-                    "  [--trace FILE] [--hang-at S] [--hang-masked 0|1] [--usb-serial 0|1]\n", msg);
+                    "  [--trace FILE] [--hang-at S] [--hang-masked 0|1] [--rdy-cut T0[:T1]]...\n"
+                    "  [--usb-serial 0|1]\n", msg);
     exit(2);
 }
 
@@ -236,6 +244,9 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--twi-fault")) {
             if (twi_bus_add_fault(v, err, sizeof err) < 0) usage(err);
         } else if (!strcmp(a, "--ads-rate-error")) ads_rate_error = atof(v);
+        else if (!strcmp(a, "--rdy-cut")) {
+            if (ads1115_add_rdy_cut(v) < 0) usage("--rdy-cut takes T0[:T1] (s, T1 >= T0), at most 4 times");
+        }
         else if (!strcmp(a, "--trace")) trace_path = v;
         else if (!strcmp(a, "--hang-at")) hang_at = atof(v);
         else if (!strcmp(a, "--hang-masked")) hang_masked = atoi(v) != 0;
@@ -287,6 +298,7 @@ int main(int argc, char **argv) {
     signal(SIGTERM, on_signal);
     signal(SIGUSR1, on_usr1);
     signal(SIGUSR2, on_usr2);
+    signal(SIGRTMIN, on_hang_now);
     signal(SIGPIPE, SIG_IGN);
     H.plant = plant_connect(plant_path, err, sizeof err);
     if (!H.plant) {
@@ -318,6 +330,12 @@ int main(int argc, char **argv) {
             g_dtr = 0;
             H.resets++;
             reset_avr(MCUSR_EXTRF, "external");
+        }
+        if (g_brown) {  // the supply dipped: SRAM kept, BORF (the stock bootloader clears it)
+            g_brown = 0;
+            H.resets++;
+            drive_brown_out(&H);
+            reset_avr(MCUSR_BORF, "brown_out");
         }
         if (g_hang_now) {
             g_hang_now = 0;

@@ -12,7 +12,7 @@
 //     start the application at once, through a function pointer (EICALL), but its C
 //     start-up has set EIND to 1 for the boot section: the call lands at 0x20000, in
 //     erased flash below an application of less than 128 KB, and the chip runs on into
-//     the bootloader, which now finds MCUSR clear and waits its second as after any
+//     the bootloader, which now finds MCUSR clear and waits its 0.83 s as after any
 //     reset. So here: no early start (checked against the real bootloader's hex,
 //     tests/simavr/test_flash_bootloader.py).
 //   * OLD_2011 (boards programmed with the 2011 release): it leaves MCUSR and the

@@ -22,10 +22,13 @@ bootloader from Debian's arduino-core-avr, which avrdude can program through),
 ``enable_pull`` down | up (the A4988 /ENABLE resistor: down keeps the motor energized
 through a reset), ``backdrive_steps_per_s`` (how fast the loaded strings turn a released
 motor back), ``ads_rate_error`` (the ADS1115's oscillator error, +-0.1 in its data
-sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``hang_at_s`` (with
-``hang_masked``) and ``trace``; ``tsa-bench sim-serve --mega`` (:func:`mega_settings`)
-and its tests set ``application`` (blank or an image) and ``usb_serial`` (the port as
-the Mega's USB-serial chip: the host opening it resets the AVR, its baud rate matters).
+sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``rdy_cuts`` (the ALERT/RDY
+wire cut between T0[:T1] s: firmware/sim/ads1115.c), ``hang_at_s`` (with ``hang_masked``)
+and ``trace``. :meth:`SimavrBench.brown_out` dips the supply: SRAM kept, MCUSR BORF (the
+stock bootloader clears it), the A4988's translator back at Home. ``tsa-bench sim-serve
+--mega`` (:func:`mega_settings`) and its tests set ``application`` (blank or an image)
+and ``usb_serial`` (the port as the Mega's USB-serial chip: the host opening it resets
+the AVR, its baud rate matters).
 """
 
 from __future__ import annotations
@@ -112,6 +115,8 @@ class SimavrBench:
                    "--ads-rate-error", repr(s.ads_rate_error)]
             for fault in s.twi_faults:
                 cmd += ["--twi-fault", fault]
+            for cut in s.rdy_cuts:
+                cmd += ["--rdy-cut", cut]
             cmd += ["--hang-masked", "1" if s.hang_masked else "0", "--usb-serial", "1" if s.usb_serial else "0"]
             if s.hang_at_s is not None:
                 cmd += ["--hang-at", repr(s.hang_at_s)]
@@ -146,6 +151,11 @@ class SimavrBench:
 
     def hang(self) -> None:
         """Hang the firmware's main loop now (masked interrupts if ``hang_masked``), as a bug would."""
+        assert self._proc is not None
+        self._proc.send_signal(signal.SIGRTMIN)
+
+    def brown_out(self) -> None:
+        """A supply dip: the AVR resets with BORF and SRAM kept, the A4988 restarts at Home."""
         assert self._proc is not None
         self._proc.send_signal(signal.SIGUSR2)
 
