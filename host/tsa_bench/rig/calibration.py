@@ -155,13 +155,17 @@ def parse_reference(text: str, unit: str) -> float | None:
 
 def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequence[float] = (),
             seconds: float = 1.0, rate_turns_per_s: float = 1.0, accel_turns_per_s2: float = 10.0,
-            say: Callable[[str], None] = print) -> tuple[list[float], list[float], float]:
+            say: Callable[[str], None] = print,
+            kept: list[tuple[float, float]] | None = None) -> tuple[list[float], list[float], float]:
     """Take calibration points on a connected :class:`~tsa_bench.rig.link.RigLink` (module contract):
-    (mean counts, reference values, the largest standard error of a point's mean counts)."""
+    (mean counts, reference values, the largest standard error of a point's mean counts).
+    Each point is also appended to ``kept`` (counts, reference) the moment it is complete,
+    so a caller still has the points when the rig fails later (an exception from here)."""
     unit = "mm" if quantity == "position" else "ohm"
     what = "ruler length" if quantity == "position" else "reference resistance"
     counts: list[float] = []
     refs: list[float] = []
+    kept = [] if kept is None else kept
     error = 0.0
     period_s = min(0.1, max(0.01, seconds / 10))
     link.set_sampling(period_s)
@@ -187,6 +191,7 @@ def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequenc
             say(f"point {i + 1}: {c:.2f} counts = {value:g} {unit}")
             counts.append(c)
             refs.append(value)
+            kept.append((c, value))
             error = max(error, se)
     finally:
         if at_turns:
@@ -206,3 +211,8 @@ def fit_for(quantity: str, counts: Sequence[float], refs: Sequence[float], bench
     if quantity == "position":
         return fit_position(counts, refs, count_error)
     return fit_resistance(counts, refs, bench.resistance.ohm_per_count, count_error)
+
+
+def points_text(points: Sequence[tuple[float, float]]) -> str:
+    """The points as ``--points`` takes them (counts=reference, ...), re-fitted without the rig."""
+    return ",".join(f"{c:.6g}={r:.10g}" for c, r in points)
