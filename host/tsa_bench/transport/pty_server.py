@@ -14,6 +14,12 @@ previous output has been written to the master, so a client that does not read
 stalls the device instead of growing a buffer (natural back-pressure: a silent client
 then trips the watchdog, like a real device whose host went away). Returns when
 ``stop`` is set (checked at least every 50 ms); without ``stop`` it serves forever.
+
+``as_hardware``: the device passes for the rig (no SIMULATED flag, SIM_SET_LOAD unknown)
+and, unless ``reset_on_open`` is False (a Mega wired not to reset), resets whenever a
+client opens the port, as a Mega's DTR line does (:meth:`SimDevice.after_reset`: BOOT
+external_reset, fault and queue gone, a position known at rest kept). Its load changes
+only by what arrives on ``loads`` (g: a person's hand), taken between device steps.
 """
 
 from __future__ import annotations
@@ -21,8 +27,9 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
-import struct
+import queue
 import select
+import struct
 import termios
 import threading
 import time
@@ -37,6 +44,8 @@ __all__ = ["serve_pty", "POLL_S", "CHUNK_BYTES"]
 
 #: Longest the loop blocks before looking at ``stop`` again (s).
 POLL_S = 0.05
+#: How long a Mega takes to boot after its DTR reset (s): more line set-up within it is the same open.
+BOOT_S = 1.0
 #: Output one device step may produce before it is written out.
 CHUNK_BYTES = 1024
 
@@ -56,17 +65,27 @@ def _open_raw_pty() -> tuple[int, int, str]:
 
 
 def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
-              on_ready: Callable[[str], None], stop: threading.Event | None = None) -> None:
+              on_ready: Callable[[str], None], stop: threading.Event | None = None, *,
+              as_hardware: bool = False, reset_on_open: bool = True,
+              loads: queue.SimpleQueue[float] | None = None,
+              on_reset: Callable[[SimDevice], None] | None = None) -> None:
     """Run a :class:`SimDevice` behind a pty until ``stop`` is set (see module docstring)."""
     master, slave, path = _open_raw_pty()
+    opens = as_hardware and reset_on_open
+    if opens:
+        _report_opens(master, slave)
     try:
-        device = SimDevice(bench, seed=seed)
+        device = SimDevice(bench, seed=seed, simulated=not as_hardware)
         pacer = Pacer(device, speed)
         device.boot()
         pending = bytearray(device.take_output())
         last_rx = (device.now_s, time.monotonic())
+        spoke, reset_wall = False, 0.0
         on_ready(path)
         while stop is None or not stop.is_set():
+            while loads is not None and not loads.empty():
+                device.set_load_g(loads.get())   # a person hung another load
+
             if not pending and _unread(slave) == 0 and _host_keeps_up(device, last_rx):
                 # Virtual time runs only once the client has read everything sent so
                 # far, as sim:// advances only on read: a slow client cannot fall
@@ -84,7 +103,22 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
             readable, writable, _ = select.select([master], [master] if pending else [], [], timeout)
             if readable:
                 data = _read_master(master)
+                if opens and data:   # packet mode: a control byte first (0: data follows)
+                    control, data = data[0], data[1:]
+                    # one open may set the line up more than once: a new open is one after the
+                    # client spoke, or after a Mega's boot time
+                    if control & _TIOCPKT_IOCTL and (spoke or time.monotonic() - reset_wall > BOOT_S):
+                        spoke, reset_wall = False, time.monotonic()
+                        # DTR: the device resets; what it was sending is cut off, BOOT follows
+                        device = device.after_reset()
+                        pacer = Pacer(device, speed)
+                        pending = bytearray(device.take_output())
+                        last_rx = (device.now_s, time.monotonic())
+                        if on_reset is not None:
+                            on_reset(device)
+                        continue
                 if data:
+                    spoke = True
                     last_rx = (device.now_s, time.monotonic())
                     device.receive(data)
                     pending += device.take_output()
@@ -94,6 +128,26 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
     finally:
         os.close(master)
         os.close(slave)
+
+
+#: TIOCPKT control bits (linux/tty.h): a termios change on a slave with EXTPROC set, a flush
+_TIOCPKT_IOCTL = 0x40
+_EXTPROC = 0o200000
+
+
+def _report_opens(master: int, slave: int) -> None:
+    """Packet mode on the master and EXTPROC on the slave: a client's open (pyserial sets
+    the line's termios) then shows on the master as a TIOCPKT_IOCTL control packet, where a
+    Mega's USB bridge pulses DTR. Every later read of the master starts with a control
+    byte: 0 before data, else a control packet alone (a flush; TIOCPKT_IOCTL: an open)."""
+    attrs = termios.tcgetattr(slave)
+    attrs[3] |= _EXTPROC
+    termios.tcsetattr(slave, termios.TCSANOW, attrs)
+    fcntl.ioctl(master, termios.TIOCPKT, struct.pack("i", 1))
+    try:   # setting EXTPROC above is itself reported once: not a client
+        os.read(master, 1)
+    except BlockingIOError:
+        pass
 
 
 def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
