@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import math
 import os
 import queue
 import select
@@ -71,16 +72,13 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
               on_reset: Callable[[SimDevice], None] | None = None) -> None:
     """Run a :class:`SimDevice` behind a pty until ``stop`` is set (see module docstring)."""
     master, slave, path = _open_raw_pty()
-    opens = as_hardware and reset_on_open
-    if opens:
-        _report_opens(master, slave)
+    opens = OpenWatch(master, slave) if as_hardware and reset_on_open else None
     try:
         device = SimDevice(bench, seed=seed, simulated=not as_hardware)
         pacer = Pacer(device, speed)
         device.boot()
         pending = bytearray(device.take_output())
         last_rx = (device.now_s, time.monotonic())
-        spoke, reset_wall = False, 0.0
         on_ready(path)
         while stop is None or not stop.is_set():
             while loads is not None and not loads.empty():
@@ -103,12 +101,9 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
             readable, writable, _ = select.select([master], [master] if pending else [], [], timeout)
             if readable:
                 data = _read_master(master)
-                if opens and data:   # packet mode: a control byte first (0: data follows)
-                    control, data = data[0], data[1:]
-                    # one open may set the line up more than once: a new open is one after the
-                    # client spoke, or after a Mega's boot time
-                    if control & _TIOCPKT_IOCTL and (spoke or time.monotonic() - reset_wall > BOOT_S):
-                        spoke, reset_wall = False, time.monotonic()
+                if opens is not None:
+                    opened, data = opens.split(data)
+                    if opened:
                         # DTR: the device resets; what it was sending is cut off, BOOT follows
                         device = device.after_reset()
                         pacer = Pacer(device, speed)
@@ -118,7 +113,6 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
                             on_reset(device)
                         continue
                 if data:
-                    spoke = True
                     last_rx = (device.now_s, time.monotonic())
                     device.receive(data)
                     pending += device.take_output()
@@ -135,19 +129,37 @@ _TIOCPKT_IOCTL = 0x40
 _EXTPROC = 0o200000
 
 
-def _report_opens(master: int, slave: int) -> None:
-    """Packet mode on the master and EXTPROC on the slave: a client's open (pyserial sets
-    the line's termios) then shows on the master as a TIOCPKT_IOCTL control packet, where a
-    Mega's USB bridge pulses DTR. Every later read of the master starts with a control
-    byte: 0 before data, else a control packet alone (a flush; TIOCPKT_IOCTL: an open)."""
-    attrs = termios.tcgetattr(slave)
-    attrs[3] |= _EXTPROC
-    termios.tcsetattr(slave, termios.TCSANOW, attrs)
-    fcntl.ioctl(master, termios.TIOCPKT, struct.pack("i", 1))
-    try:   # setting EXTPROC above is itself reported once: not a client
-        os.read(master, 1)
-    except BlockingIOError:
-        pass
+class OpenWatch:
+    """Tells when a client opens the pty's slave, where a Mega's USB bridge pulses DTR.
+
+    Packet mode on the master and EXTPROC on the slave: a client's open (pyserial sets the
+    line's termios) shows on the master as a TIOCPKT_IOCTL control packet. Every read of
+    the master then starts with a control byte: 0 before data, else a control packet
+    alone (a flush; an open). One open may set the line up more than once: a new open is
+    one after the client spoke, or more than :data:`BOOT_S` after the last.
+    """
+
+    def __init__(self, master: int, slave: int) -> None:
+        attrs = termios.tcgetattr(slave)
+        attrs[3] |= _EXTPROC
+        termios.tcsetattr(slave, termios.TCSANOW, attrs)
+        fcntl.ioctl(master, termios.TIOCPKT, struct.pack("i", 1))
+        if select.select([master], [], [], 0)[0]:   # setting EXTPROC above is itself reported once
+            os.read(master, 1)
+        self._spoke = False
+        self._last = -math.inf
+
+    def split(self, packet: bytes) -> tuple[bool, bytes]:
+        """(a client opened the port, the data) of one read of the master."""
+        if not packet:
+            return False, b""
+        control, data = packet[0], packet[1:]
+        if data:
+            self._spoke = True
+        if control & _TIOCPKT_IOCTL and (self._spoke or time.monotonic() - self._last > BOOT_S):
+            self._spoke, self._last = False, time.monotonic()
+            return True, data
+        return False, data
 
 
 def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
