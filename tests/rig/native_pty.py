@@ -10,6 +10,7 @@ import threading
 import tty
 from pathlib import Path
 
+from tsa_bench.protocol import MessageDecoder, msg
 from tsa_bench.transport.pty_server import OpenWatch
 
 
@@ -23,9 +24,11 @@ class NativeFirmwarePty:
     flag) and a relay thread stands between the pty and the firmware: every client's open
     of the port resets the core (``--control-fd`` "reset", as a Mega's DTR pulse does,
     :class:`~tsa_bench.transport.pty_server.OpenWatch`), and :meth:`hang` changes the load
-    as a person would. :attr:`proc` is the firmware process (SIGSTOP stalls the rig)."""
+    as a person would; ``reset_on_open=False`` is a Mega wired not to reset. :attr:`faults`
+lists the latched faults the device reported, :attr:`proc` is the firmware process
+(SIGSTOP stalls the rig)."""
 
-    def __init__(self, binary: Path, *args: str, as_hardware: bool = False) -> None:
+    def __init__(self, binary: Path, *args: str, as_hardware: bool = False, reset_on_open: bool = True) -> None:
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave)
         self.path = os.ttyname(self._slave)
@@ -40,7 +43,9 @@ class NativeFirmwarePty:
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      pass_fds=(control_r,), bufsize=0)
         os.close(control_r)
-        self._watch = OpenWatch(self.master, self._slave)
+        self._watch = OpenWatch(self.master, self._slave) if reset_on_open else None
+        self.faults: list[int] = []    # each change of the latched fault the device reported (0: cleared)
+        self._decoder = MessageDecoder()
         self._stop = threading.Event()
         self._relay = threading.Thread(target=self._run_relay, daemon=True)
         self._relay.start()
@@ -55,7 +60,8 @@ class NativeFirmwarePty:
             ready, _, _ = select.select([self.master, out], [], [], 0.05)
             try:
                 if self.master in ready:
-                    opened, data = self._watch.split(os.read(self.master, 4096))
+                    data = os.read(self.master, 4096)
+                    opened, data = self._watch.split(data) if self._watch is not None else (False, data)
                     if opened:
                         self.resets += 1
                         os.write(self._control, b"reset\n")
@@ -65,9 +71,18 @@ class NativeFirmwarePty:
                     data = os.read(out, 4096)
                     if not data:
                         return
+                    self._note_faults(data)
                     os.write(self.master, data)
             except OSError:
                 return
+
+    def _note_faults(self, data: bytes) -> None:
+        for frame in self._decoder.feed(data):
+            m = frame.message
+            code = m.fault if isinstance(m, msg.QueueStatus) else m.code if isinstance(m, msg.Event) and \
+                m.kind == msg.EventKind.FAULT else None
+            if code is not None and code != (self.faults[-1] if self.faults else 0):
+                self.faults.append(code)
 
     def close(self) -> None:
         if self._relay is not None:

@@ -111,9 +111,14 @@ def sim_serve(bench_path: str | None, speed: float | None, seed: int | None, as_
         kept = "position kept" if device.position_known else "position unknown"
         click.echo(f"rig: reset (port opened): {kept}", err=True)
 
+    def fault(code: int) -> None:
+        from tsa_bench.device.faults import fault_name
+
+        click.echo(f"rig: fault {fault_name(code)} latched" if code else "rig: fault cleared", err=True)
+
     try:
         serve_pty(bench, speed, seed, ready, as_hardware=as_hardware, reset_on_open=not no_reset, loads=loads,
-                  on_reset=reset)
+                  on_reset=reset, on_fault=fault if as_hardware else None)
     except KeyboardInterrupt:
         pass
 

@@ -20,6 +20,7 @@ and, unless ``reset_on_open`` is False (a Mega wired not to reset), resets whene
 client opens the port, as a Mega's DTR line does (:meth:`SimDevice.after_reset`: BOOT
 external_reset, fault and queue gone, a position known at rest kept). Its load changes
 only by what arrives on ``loads`` (g: a person's hand), taken between device steps.
+``on_reset`` sees each reset device, ``on_fault`` each change of the latched fault (0: cleared).
 """
 
 from __future__ import annotations
@@ -69,7 +70,8 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
               on_ready: Callable[[str], None], stop: threading.Event | None = None, *,
               as_hardware: bool = False, reset_on_open: bool = True,
               loads: queue.SimpleQueue[float] | None = None,
-              on_reset: Callable[[SimDevice], None] | None = None) -> None:
+              on_reset: Callable[[SimDevice], None] | None = None,
+              on_fault: Callable[[int], None] | None = None) -> None:
     """Run a :class:`SimDevice` behind a pty until ``stop`` is set (see module docstring)."""
     master, slave, path = _open_raw_pty()
     opens = OpenWatch(master, slave) if as_hardware and reset_on_open else None
@@ -80,7 +82,11 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
         pending = bytearray(device.take_output())
         last_rx = (device.now_s, time.monotonic())
         on_ready(path)
+        latched = 0
         while stop is None or not stop.is_set():
+            if on_fault is not None and device.fault != latched:
+                latched = device.fault
+                on_fault(latched)   # 0: cleared
             while loads is not None and not loads.empty():
                 device.set_load_g(loads.get())   # a person hung another load
 
