@@ -89,6 +89,16 @@ class Terminal:
                     return
                 raise AssertionError(f"{text!r} not printed {count} times; screen:\n{self.screen_text()}")
 
+    def wait_raw_any(self, texts: list[str], deadline_s: float = DEADLINE_S) -> str:
+        """Until the command prints one of ``texts`` (from now on); which one."""
+        start, end = len(self.raw), time.monotonic() + deadline_s
+        while True:
+            for text in texts:
+                if text.encode() in self.raw[start:]:
+                    return text
+            if time.monotonic() > end or not self._pump(0.1):
+                raise AssertionError(f"none of {texts} printed; screen:\n{self.screen_text()}")
+
     def output(self) -> str:
         """Everything printed, control sequences removed as the screen applied them (approximate)."""
         return self.raw.decode(errors="replace")

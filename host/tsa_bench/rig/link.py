@@ -167,7 +167,7 @@ class RigLink:
             reason = msg.Status(ack.status).name.lower()
             hint = ""
             if ack.status == msg.Status.BAD_STATE and self.fault:
-                hint = f" ({latched_text(self.last_status or self.status(), self.identity)})"
+                hint = f" (device fault {fault_name(self.fault)} latched; {CLEARS})"
             elif ack.status == msg.Status.BAD_STATE:
                 hint = " (the device does not know its position yet: tsa-bench zero)"
             raise RigError(f"the device refused {what}: {reason}{hint}")

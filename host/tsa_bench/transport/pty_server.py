@@ -90,6 +90,11 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
             while loads is not None and not loads.empty():
                 device.set_load_g(loads.get())   # a person hung another load
 
+            if _host_gone(device, last_rx) and (pending or _unread(slave)):
+                # nobody reads any more (the client left): what was sent is lost, as on a
+                # serial line, and the device runs on (its watchdog must fire)
+                termios.tcflush(slave, termios.TCIFLUSH)
+                pending.clear()
             if not pending and _unread(slave) == 0 and _host_keeps_up(device, last_rx):
                 # Virtual time runs only once the client has read everything sent so
                 # far, as sim:// advances only on read: a slow client cannot fall
@@ -168,6 +173,11 @@ class OpenWatch:
         return False, data
 
 
+def _host_gone(device: SimDevice, last_rx: tuple[float, float]) -> bool:
+    """The host has been silent for two watchdog periods of wall time: gone, not slow."""
+    return time.monotonic() - last_rx[1] > 2 * device.limits.watchdog_s
+
+
 def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
     """Whether virtual time may advance: not more than an eighth of a watchdog period past the
     device time of the host's last frame, unless the host has been silent for two
@@ -177,11 +187,9 @@ def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
     can read 0 before the client has seen them; this bounds how far ahead that lets
     the device run.
     """
-    last_dev_s, last_wall = last_rx
-    watchdog_s = device.limits.watchdog_s
-    if time.monotonic() - last_wall > 2 * watchdog_s:
+    if _host_gone(device, last_rx):
         return True
-    return device.now_s < last_dev_s + watchdog_s / 8
+    return device.now_s < last_rx[0] + device.limits.watchdog_s / 8
 
 
 def _unread(slave: int) -> int:
