@@ -37,7 +37,7 @@ sampling_period_s: 0.05
 defaults: {rate_turns_per_s: 3, accel_turns_per_s2: 30}
 steps:
   - move_to: {turns: 2}
-  - hold: {duration_s: 300}
+  - hold: {duration_s: 60}
   - move_to: {turns: 0}
 """
 POSITION_Q = "Is the TSA untwisted now (strings hanging straight, twist zero)? [y/N]"
