@@ -275,7 +275,7 @@ class Runner:
         """Say what is latched, then CLEAR_QUEUE; RunFailed when the fault stays."""
         what = latched_text(status, self.ident)
         self.operator.tell(f"tsa-bench: {what}. Clearing it now (CLEAR_QUEUE) before the run starts.")
-        self._event("fault_cleared", f"{fault_name(status.fault)} latched before the run: cleared at its start")
+        self._event("fault_at_start", f"{fault_name(status.fault)} latched before the run: CLEAR_QUEUE sent")
         self._command(msg.ClearQueue())
         self._last_status = None
         self._command(msg.Heartbeat())
