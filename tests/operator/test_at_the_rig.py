@@ -7,6 +7,7 @@ Issue 35."""
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import threading
@@ -209,7 +210,8 @@ def test_ctrl_c_then_the_latched_fault_is_shown_and_cleared_and_the_run_resumed(
 @pytest.mark.parametrize("rig", ["sim-serve", "native"], indirect=True)
 def test_a_stall_during_calibrate_keeps_the_readings(rig, tmp_path):
     """The rig freezes for 4 s (SIGSTOP) after two ruler readings: one error line, no
-    traceback, the two points kept as a --points command that re-fits them."""
+    traceback, the two points kept as a --points command that re-fits them; the same
+    stall during `check`: one error line."""
     zero = Terminal(["zero", "--yes", *_rig_args(rig)], 80, 24, tmp_path)
     assert zero.finish() == 0
     t = Terminal(["calibrate", "position", "--at-turns", "0,10,20", "--seconds", "0.3", *_rig_args(rig)],
@@ -217,8 +219,6 @@ def test_a_stall_during_calibrate_keeps_the_readings(rig, tmp_path):
     for i, reading in enumerate(("300", "290")):
         t.wait_raw("ruler length now (mm):", i + 1)
         if i == 1:
-            import os
-
             os.kill(rig.pid, signal.SIGSTOP)
             threading.Timer(4.0, os.kill, (rig.pid, signal.SIGCONT)).start()
         t.type(f"{reading}\r")
@@ -236,3 +236,13 @@ def test_a_stall_during_calibrate_keeps_the_readings(rig, tmp_path):
                       "--out", str(tmp_path / "refit.yaml")], 80, 24, tmp_path)
     assert refit.finish() == 0, refit.screen_text()
     assert (tmp_path / "refit.yaml").exists() and command is not None
+
+    # the same stall while `check` reads the sensors: one line, exit 1
+    t = Terminal(["check", "--seconds", "6", *_rig_args(rig)], 80, 24, tmp_path)
+    t.wait_for("limits ")
+    os.kill(rig.pid, signal.SIGSTOP)
+    threading.Timer(4.0, os.kill, (rig.pid, signal.SIGCONT)).start()
+    assert t.finish() == 1
+    assert "Traceback" not in t.output()
+    errors = [line for line in t.screen_text().splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "no ACK" in errors[0], t.screen_text()
