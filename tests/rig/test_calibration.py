@@ -141,3 +141,22 @@ def test_a_slow_person_reading_the_ruler_trips_no_watchdog():
         counts, refs, _ = acquire(link, "position", slow_person, at_turns=[0, 5, 10], seconds=0.3, say=lambda _: None)
         assert device.fault == 0
     assert refs == [300.0, 290.0, 280.0] and len(set(counts)) == 3
+
+
+def test_a_probe_that_stalls_is_one_line_not_a_traceback(monkeypatch):
+    """`ports --probe`: a device that answers the handshake and then falls silent (no ACK)
+    is reported on its line; the next port is still probed (issue 35, defect 4)."""
+    from contextlib import contextmanager
+
+    import tsa_bench.rig.link as link_module
+    from tsa_bench.device import NoAcknowledgement
+    from tsa_bench.rig.ports import probe
+
+    @contextmanager
+    def stalls(port, bench, boot_timeout_s=None):
+        raise NoAcknowledgement("no ACK for HEARTBEAT after 10 transmissions over 2.55 s")
+        yield
+
+    monkeypatch.setattr(link_module, "open_link", stalls)
+    result = probe("/dev/ttyACM9", load_bench(MEGA))
+    assert not result.ok and "no ACK for HEARTBEAT" in result.text
