@@ -137,8 +137,12 @@ class Exchange:
         raise AssertionError(f"nothing matching arrived within {timeout_s} s; events {self.events[-5:]}")
 
     def wait_device_s(self, seconds: float, timeout_s: float = 60.0) -> None:
-        """Keep the session alive until SAMPLEs show ``seconds`` more of device time."""
-        target = (self.samples[-1].t_us if self.samples else 0) + seconds * 1e6
+        """Keep the session alive until SAMPLEs show ``seconds`` more of device time (counted
+        from the first sample when none came yet: how much device time the handshake took
+        depends on the machine's load, not on the device)."""
+        if not self.samples:
+            self.wait_for(lambda m: isinstance(m, msg.Sample), timeout_s)
+        target = self.samples[-1].t_us + seconds * 1e6
         self.wait_for(lambda m: isinstance(m, msg.Sample) and m.t_us >= target, timeout_s)
 
 
