@@ -260,6 +260,8 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
                 session.finish(status, reason)
     except RigError as exc:
         fail(str(exc), EXIT_FAILED)
+    if status == "failed":
+        click.echo(f"error: {reason}", err=True)
     click.echo(f"wrote {path}")
     sys.exit({"success": 0, "aborted": EXIT_ABORTED}.get(status, EXIT_FAILED))
 
