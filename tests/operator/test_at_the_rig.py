@@ -38,7 +38,9 @@ sampling_period_s: 0.05
 defaults: {rate_turns_per_s: 3, accel_turns_per_s2: 30}
 steps:
   - move_to: {turns: 2}
-  - hold: {duration_s: 60}
+  - hold: {duration_s: 10}
+  - prompt: {text: "Look at the clamp (then Enter)"}
+  - hold: {duration_s: 10}
   - move_to: {turns: 0}
 """
 POSITION_Q = "Is the TSA untwisted now (strings hanging straight, twist zero)? [y/N]"
@@ -180,7 +182,7 @@ def test_ctrl_c_then_the_latched_fault_is_shown_and_cleared_and_the_run_resumed(
     run_file = tmp_path / "long.h5"
     t = Terminal(["run", str(proto), *_rig_args(rig), "--output", str(run_file)], 80, 24, tmp_path)
     _ask_position_and_say_yes(t)
-    t.wait_for("segment 1/3")          # moved, now holding: mid-run
+    t.wait_for(">>> Look at the clamp (then Enter)")   # moved and held, the device sampling: mid-run
     t.interrupt()
     assert t.finish() == 130
     assert shows(t.screen_text(), f"to continue it later: tsa-bench run --resume {run_file}")
@@ -199,12 +201,14 @@ def test_ctrl_c_then_the_latched_fault_is_shown_and_cleared_and_the_run_resumed(
     assert shows(screen, "The motor will move to 2 turns from where the device is now")
     t.type("y\r")
     # the device released its motor if the fault outlasted 10 s of its time: then it asks the twist zero too
-    if t.wait_raw_any([POSITION_Q, "wrote "]) == POSITION_Q:
+    if t.wait_raw_any([POSITION_Q, ">>> Look at the clamp"]) == POSITION_Q:
         t.type("y\r")
+    t.wait_raw(">>> Look at the clamp (then Enter)")    # the resumed run starts at the interrupted prompt
+    t.type("\r")
     code = t.finish()
     assert code == 0, t.screen_text()
     run = read_run(resumed)
-    assert run.exit_status == "success" and run.segments["index"][0] == 1
+    assert run.exit_status == "success" and list(run.segments["index"]) == [2, 3, 4]
 
 
 @pytest.mark.parametrize("rig", ["sim-serve", "native"], indirect=True)
