@@ -77,7 +77,7 @@ def test_the_progress_line_pauses_and_prints_what_passes_through_it_whole():
     from rich.console import Console
 
     from tsa_bench.console.progress import ProgressDisplay
-    from tsa_bench.runner.documents import RunStart
+    from tsa_bench.rundocs import RunStart
 
     term = io.StringIO()
     display = ProgressDisplay(Console(file=term, force_terminal=True, width=200, markup=False, highlight=False))
