@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
 from pathlib import Path
 
 import click
@@ -72,6 +73,14 @@ def effects(bench_path: str | None) -> None:
               help="Bench file (default: configs/bench/sim.yaml; with --mega configs/bench/simavr.yaml, its plant).")
 @click.option("--speed", type=float, default=None, help="Real-time factor; default as fast as the client reads.")
 @click.option("--seed", type=int, default=None, help="Noise seed.")
+@click.option("--as-hardware", is_flag=True,
+              help="Rehearse the rig: the device does not say it is simulated (every question a real rig "
+                   "asks is asked), resets when a client opens the port (as a Mega's DTR does), powers up "
+                   "with its position unknown, and changes its load only when you type one here "
+                   "(grams, then Enter).")
+@click.option("--no-reset-on-open", "no_reset", is_flag=True,
+              help="With --as-hardware: a Mega wired not to reset when the port opens (a latched fault "
+                   "then outlives the program that caused it).")
 @click.option("--mega", is_flag=True,
               help="Serve an emulated Arduino Mega instead: simavr running the Mega's own stk500v2 bootloader "
                    "(Debian's arduino-core-avr) at wall-clock pace, to be programmed with `make -C firmware flash "
@@ -79,25 +88,54 @@ def effects(bench_path: str | None) -> None:
 @click.option("--app", default="blank", show_default=True, metavar="blank|firmware|FILE",
               help="With --mega: the application in flash at power-on: blank (erased), firmware "
                    "(firmware/build/tsa_bench.elf) or a .hex/.elf file (an older firmware).")
-def sim_serve(bench_path: str | None, speed: float | None, seed: int | None, mega: bool, app: str) -> None:
+def sim_serve(bench_path: str | None, speed: float | None, seed: int | None, as_hardware: bool,
+              no_reset: bool, mega: bool, app: str) -> None:
     """Serve the simulated bench on a pseudo-terminal; prints its path, runs until Ctrl-C."""
+    import queue
+
     if mega:
+        if as_hardware or no_reset:
+            fail("--mega is the firmware itself in simavr: --as-hardware and --no-reset-on-open go with the "
+                 "simulated bench")
         _serve_mega(bench_path, speed, seed, app)
         return
     if app != "blank":
         fail("--app goes with --mega (the simulated bench has no flash)")
+
     from tsa_bench.transport.pty_server import serve_pty
 
+    if no_reset and not as_hardware:
+        fail("--no-reset-on-open goes with --as-hardware")
     bench = load_bench_or_exit(bench_path)
+    loads: queue.SimpleQueue[float] | None = queue.SimpleQueue() if as_hardware else None
 
     def ready(path: str) -> None:
         click.echo(path)
-        click.echo(f"simulated bench '{bench.name}' serving on {path}; "
-                   f"run: tsa-bench run PROTOCOL --bench {bench.path} --port {path}   (Ctrl-C stops)", err=True)
+        if as_hardware:
+            load = float((bench.plant or {}).get("initial_load_g", 500))
+            click.echo(f"rehearsal rig '{bench.name}' on {path}: it passes for hardware (no SIMULATED flag); "
+                       f"{'' if no_reset else 'it resets when a program opens the port; '}it powers up with its "
+                       f"position unknown and {load:g} g hanging."
+                       f"\n  run: tsa-bench run PROTOCOL --bench arduino-mega.yaml --port {path}"
+                       "\n  hang a load: type its mass in grams here and press Enter (Ctrl-C stops)", err=True)
+            threading.Thread(target=_read_loads, args=(loads,), daemon=True).start()
+        else:
+            click.echo(f"simulated bench '{bench.name}' serving on {path}; "
+                       f"run: tsa-bench run PROTOCOL --bench {bench.path} --port {path}   (Ctrl-C stops)", err=True)
         sys.stdout.flush()
 
+    def reset(device) -> None:
+        kept = "position kept" if device.position_known else "position unknown"
+        click.echo(f"rig: reset (port opened): {kept}", err=True)
+
+    def fault(code: int) -> None:
+        from tsa_bench.device.faults import fault_name
+
+        click.echo(f"rig: fault {fault_name(code)} latched" if code else "rig: fault cleared", err=True)
+
     try:
-        serve_pty(bench, speed, seed, ready)
+        serve_pty(bench, speed, seed, ready, as_hardware=as_hardware, reset_on_open=not no_reset, loads=loads,
+                  on_reset=reset, on_fault=fault if as_hardware else None)
     except KeyboardInterrupt:
         pass
 
@@ -111,7 +149,7 @@ def _serve_mega(bench_path: str | None, speed: float | None, seed: int | None, a
 
     if speed is not None:
         fail("--speed does not go with --mega: the emulated Mega runs at wall-clock pace, so its bootloader "
-             "waits its real second for avrdude")
+             "waits its real 0.83 s for avrdude")
     if app not in ("blank", "firmware") and not Path(app).is_file():
         fail(f"--app: {app} is not a file (give blank, firmware or a .hex/.elf file)")
     bench = load_bench_or_exit(bench_path if bench_path is not None else str(shipped("bench/simavr.yaml")))
@@ -120,6 +158,7 @@ def _serve_mega(bench_path: str | None, speed: float | None, seed: int | None, a
                                  str(Path(app).resolve()))
     except BenchConfigError as exc:
         fail(str(exc))
+
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt  # SIGTERM stops it as Ctrl-C does: the harness and its folder go too
 
@@ -139,3 +178,21 @@ def _serve_mega(bench_path: str | None, speed: float | None, seed: int | None, a
         fail(f"the emulated Mega stopped (harness exit code {code}): {mega.stderr_text}", EXIT_FAILED)
     except SimavrError as exc:
         fail(str(exc), EXIT_FAILED)
+
+
+def _read_loads(loads) -> None:
+    """Lines typed at the rehearsal rig: a mass in grams hangs that load."""
+    for line in sys.stdin:
+        text = line.strip().lower().removesuffix("g").strip()
+        if not text:
+            continue
+        try:
+            grams = float(text)
+        except ValueError:
+            click.echo(f"rig: {line.strip()!r} is not a mass in grams (type e.g. 350 and Enter)", err=True)
+            continue
+        if not 0 <= grams < 1e6:
+            click.echo(f"rig: {grams:g} g cannot hang here (0 to 1e6 g)", err=True)
+            continue
+        loads.put(grams)
+        click.echo(f"rig: {grams:g} g hanging now", err=True)
