@@ -4,9 +4,12 @@ must agree between them: replies normalised to what the protocol promises, never
 times, sensor values or versions.
 
 A backend is any pyserial-like port. ``Exchange.replies`` collects what arrives
-within ``settle_s`` of wall time (0: one read; the simulated device answers at once);
-with ``first_reply_s`` it first waits up to that long for a reply, then until
-``settle_s`` passes quietly (an emulated CPU's speed depends on the host's load).
+within ``settle_s`` of wall time (0: one read; the simulated device answers at once).
+With ``first_reply_s`` (an emulated device) it waits on a condition instead, never on a
+quiet window (an emulated CPU's speed depends on the host's load): the device's own
+reply to the frame just sent (its ACK, IDENTITY for HELLO, also QUEUE_STATUS for a
+HEARTBEAT), with a generous deadline; what else has arrived by then comes along, and a
+later EVENT is read by ``wait_for``.
 An exchange that ``follows`` another (the same scenario already run on the simulated
 device) waits instead on a condition: as many replies as the reference got at that
 step, with a generous deadline, so a busy machine only makes it slower; a reply too
@@ -65,7 +68,7 @@ class Exchange:
         self.received += out
         return out
 
-    def replies(self) -> list:
+    def replies(self, sent: tuple | None = None) -> list:
         if self.follows is not None:
             want = self.follows.counts[len(self.counts)] if len(self.counts) < len(self.follows.counts) else 0
             out, deadline = [], time.monotonic() + self.deadline_s
@@ -73,15 +76,37 @@ class Exchange:
                 out += [m for m in self._read_some() if not isinstance(m, (msg.Sample, msg.Boot))]
             self.counts.append(len(out))
             return [normalise(m) for m in out]
+        if self.first_reply_s:
+            return self._replies_to(sent)
         out, now = [], time.monotonic()
-        deadline = now + max(self.settle_s, self.first_reply_s)
+        deadline = now + self.settle_s
         while True:
             got = [m for m in self._read_some() if not isinstance(m, (msg.Sample, msg.Boot))]
             out += got
-            if got and self.first_reply_s:
-                deadline = time.monotonic() + self.settle_s   # then until it goes quiet
             if time.monotonic() >= deadline:
                 break
+        self.counts.append(len(out))
+        return [normalise(m) for m in out]
+
+    def _replies_to(self, sent: tuple | None) -> list:
+        """Replies read until the device has answered ``sent`` ((message, seq)), within
+        ``deadline_s``. A raw frame has no reply to wait on: refused in this mode."""
+        if sent is None or sent[0] is None:
+            raise ValueError("an exchange with first_reply_s waits on the reply to a message, not raw bytes")
+        message, seq = sent
+        # a HEARTBEAT's QUEUE_STATUS follows its ACK: one after the ACK is this one's
+        wanted = [msg.Identity] if isinstance(message, msg.Hello) else \
+            [msg.Ack, msg.QueueStatus] if isinstance(message, msg.Heartbeat) else [msg.Ack]
+        out, timeout_s = [], max(self.deadline_s, self.first_reply_s)
+        deadline = time.monotonic() + timeout_s
+        while wanted:
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no reply to {message} within {timeout_s} s; got {[normalise(m) for m in out]}")
+            got = [m for m in self._read_some() if not isinstance(m, (msg.Sample, msg.Boot))]
+            out += got
+            for m in got:
+                if wanted and isinstance(m, wanted[0]) and (not isinstance(m, msg.Ack) or m.acked_seq == seq):
+                    wanted.pop(0)
         self.counts.append(len(out))
         return [normalise(m) for m in out]
 
@@ -90,7 +115,7 @@ class Exchange:
             self.seq += 1
             seq = self.seq
         self.port.write(raw if raw is not None else encode(message, seq))
-        return self.replies()
+        return self.replies((message if raw is None else None, seq))
 
     def send_for(self, message, kind: type, timeout_s: float = 10.0):
         """Send ``message`` and return the first reply of type ``kind`` (e.g. HEARTBEAT

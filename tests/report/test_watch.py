@@ -24,6 +24,33 @@ PROTO = {p.stem: p for p in PROTOCOLS}
 ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host")}
 
 
+class _Opens:
+    """Counts the opens of one file by any process (Linux inotify, IN_OPEN)."""
+
+    def __init__(self, path) -> None:
+        import ctypes
+
+        self._libc = ctypes.CDLL(None, use_errno=True)
+        self._fd = self._libc.inotify_init1(os.O_NONBLOCK | os.O_CLOEXEC)
+        assert self._fd >= 0, os.strerror(ctypes.get_errno())
+        assert self._libc.inotify_add_watch(self._fd, str(path).encode(), 0x20) >= 0, os.strerror(ctypes.get_errno())
+        self._n = 0
+
+    def count(self) -> int:
+        try:
+            while data := os.read(self._fd, 4096):
+                self._n += len(data) // 16     # struct inotify_event, no name for a watched file
+        except BlockingIOError:
+            pass
+        return self._n
+
+    def __enter__(self) -> "_Opens":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        os.close(self._fd)
+
+
 def _cli(*args: str, **kw) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", *args], cwd=ROOT, env=ENV, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
@@ -127,8 +154,15 @@ def test_watch_waits_for_the_sidecar_of_a_run_that_is_starting(tmp_path):
     w = None
     try:
         _readline(writer, "run file open")
-        w = _cli("watch", str(out), "--plain", "--interval", "0.05", "--wait", "60")
-        time.sleep(1.0)  # the watcher looks ~10 times meanwhile (if it is slower, the test is only weaker)
+        with _Opens(out) as opens:
+            w = _cli("watch", str(out), "--plain", "--interval", "0.05", "--wait", "60")
+            # each look finds no sidecar and opens the run file to see it is being written:
+            # 10 opens are several looks, whatever the machine's load
+            deadline = time.monotonic() + 60
+            while opens.count() < 10:
+                assert w.poll() is None, w.communicate()
+                assert time.monotonic() < deadline, f"the watcher looked {opens.count()} times in 60 s"
+                time.sleep(0.05)
         assert w.poll() is None, w.communicate()
         writer.stdin.write("sidecar\nblock\nend\n")
         writer.stdin.flush()

@@ -103,8 +103,8 @@ def _start_run(tmp_path: Path, speed: str) -> tuple[subprocess.Popen, Path]:
 def test_sigkill_leaves_a_readable_file_with_data_up_to_the_last_flush(tmp_path):
     proc, out = _start_run(tmp_path, "400")
     try:
-        _wait_for_samples(out, 200)
-        time.sleep(1.5)
+        n = _wait_for_samples(out, 200)
+        _wait_for_samples(out, n + 1)      # a later flush: killed mid-run, past the first flushes
         proc.kill()
         proc.wait(10)
     finally:

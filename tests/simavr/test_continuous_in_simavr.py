@@ -150,7 +150,10 @@ def test_a_slow_stop_is_no_step_underrun(firmware_dir):
         _, events = collect(client, lambda s, e: sum(x.motor_moving for x in s) > 20)
         client.stop()
         stopped, more = collect(client, lambda s, e: any(x.kind == E.STOPPED for x in e))
-        time.sleep(0.3)
+        t_stop = next(x.t_us for x in more if x.kind == E.STOPPED)
+        # 0.3 s of device time after the stop, proved by a sample stamped that late
+        _, after = collect(client, lambda s, e: any(x.t_us > t_stop + 300_000 for x in s))
+        more += after
         status = client.status()
         events += more + [m for m in client.poll() if isinstance(m, msg.Event)]
     assert status.step_underruns == 0 and not status.state & msg.DeviceState.POSITION_SUSPECT

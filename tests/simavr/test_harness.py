@@ -78,7 +78,7 @@ def test_moves_at_the_rate_limit_count_every_step_while_sampling(firmware_dir):
 
 def test_sigterm_stops_cleanly_with_a_summary(firmware_dir):
     with simavr_port(firmware_dir) as (port, bench):
-        time.sleep(0.3)
+        pass                                 # the firmware has run: its BOOT came
     assert bench.returncode == 0
     assert bench.summary["stop_reason"] == "SIGTERM" and not bench.summary["crashed"]
     assert bench.summary["device_time_s"] > 0 and bench.summary["resets"] == 0
@@ -145,16 +145,26 @@ def test_sigterm_to_tsa_bench_run_aborts_and_stops_the_harness(repo_root, firmwa
     import signal
     import sys
 
+    from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
     from tsa_bench.store.reader import read_run
 
     out = tmp_path / "aborted.h5"
     proc = subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", "run", "configs/protocols/twist-sweep-3ply.yaml",
                              "--bench", "configs/bench/simavr.yaml", "--output", str(out)],
                             cwd=repo_root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while not (out.exists() and out.stat().st_size > 20_000) and time.monotonic() < deadline:
+    # mid-run: samples recorded (the live sidecar has them), not a fixed wait
+    sidecar, deadline = sidecar_path(out), time.monotonic() + 120
+    tail = None
+    while True:
+        assert proc.poll() is None and time.monotonic() < deadline, "the run recorded no samples"
+        if tail is None and sidecar.exists():
+            try:
+                tail = LiveTail(sidecar)
+            except LiveFormatError:          # its header still being written
+                pass
+        if tail is not None and len(tail.poll()) > 0:
+            break
         time.sleep(0.2)
-    time.sleep(1.0)
     proc.send_signal(signal.SIGTERM)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stdout[-2000:] + stderr[-2000:]
@@ -174,19 +184,33 @@ def _tiny_firmware(tmp_path, source: str, firmware_dir) -> Path:
     return tmp_path
 
 
+def _read_until(port, done, timeout_s: float = 60.0) -> bytes:
+    """Bytes from ``port`` until ``done(bytes so far)``; fails after ``timeout_s`` of wall time."""
+    got, deadline = b"", time.monotonic() + timeout_s
+    while not done(got):
+        assert time.monotonic() < deadline, f"timed out; got {got[-40:]!r}"
+        got += port.read(port.in_waiting or 1)
+    return got
+
+
 def test_the_uart_overrun_a_real_chip_would_show_is_counted(firmware_dir, tmp_path):
     """A program that enables the receiver but never reads UDR0: of 10 bytes, 2 fit the
-    real 2-level receive buffer and 8 overrun (simavr's own 64-byte FIFO would hide them)."""
+    real 2-level receive buffer and 8 overrun (simavr's own 64-byte FIFO would hide them).
+    The program sends its UCSR0A without pause (one byte per frame time, device time): the
+    host sends once the receiver is on, and stops once DOR0 has shown and 100 frame times
+    more have passed (the remaining 7 bytes take 7)."""
     fw = _tiny_firmware(tmp_path, """#include <avr/io.h>
 int main(void) { UBRR0 = 7; UCSR0A = 1 << U2X0; UCSR0C = 3 << UCSZ00; UCSR0B = (1 << RXEN0) | (1 << TXEN0);
-  for (;;) {} }
+  for (;;) { while (!(UCSR0A & (1 << UDRE0))) {} UDR0 = UCSR0A; } }
 """, firmware_dir)
+    dor0 = 1 << 3
     with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False, bootloader="none")) as bench:
         port = serial.Serial(bench.port_path, 250000, timeout=0.02)
         bench.start()
-        time.sleep(0.2)
+        _read_until(port, lambda got: len(got) > 0)              # running, its receiver on
         port.write(bytes(range(10)))
-        time.sleep(0.5)
+        _read_until(port, lambda got: dor0 in (b & dor0 for b in got) and
+                    len(got) - next(i for i, b in enumerate(got) if b & dor0) > 100)
         port.close()
     assert bench.summary["uart"]["rx_bytes"] == 2
     assert bench.summary["violations"]["uart_rx_overrun"] == 8
@@ -200,11 +224,14 @@ int main(void) {
   DDRA = 0x07; PORTA = 0x00;                               /* /ENABLE low: driver on, DIR low */
   for (volatile unsigned char i = 0; i < 10; ++i) { PORTA |= 1; PORTA &= ~1; }
   PORTA |= 2; PORTA |= 1; PORTA &= ~1;                     /* DIR high right before STEP */
+  UBRR0 = 7; UCSR0A = 1 << U2X0; UCSR0C = 3 << UCSZ00; UCSR0B = 1 << TXEN0; UDR0 = 'D';  /* done */
   for (;;) {} }
 """, firmware_dir)
     with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=fw, build=False, bootloader="none")) as bench:
+        port = serial.Serial(bench.port_path, 250000, timeout=0.02)
         bench.start()
-        time.sleep(0.5)
+        _read_until(port, lambda got: b"D" in got)
+        port.close()
     s = bench.summary
     assert s["steps"]["total"] == 11 and s["steps"]["position"] == -10 + 1
     assert s["violations"]["step_pulse_width"] >= 10

@@ -9,6 +9,8 @@ import math
 import subprocess
 import time
 
+import serial
+
 from tests import conformance_scenarios as sc
 from tests.simavr.conftest import SIMAVR_BENCH, simavr_port, wait_boot
 from tsa_bench.protocol import encode, msg
@@ -214,6 +216,7 @@ int main(void) {{
   TWDR = 0x48 << 1; PORTA |= 1; TWCR = (1 << TWINT) | (1 << TWEN);
   while (!(TWCR & (1 << TWINT))) {{}}
   PORTA &= ~1;
+  UBRR0 = 7; UCSR0A = 1 << U2X0; UCSR0C = 3 << UCSZ00; UCSR0B = 1 << TXEN0; UDR0 = 'D';  /* measured */
   for (;;) {{}} }}
 """)
         build = tmp_path / f"fw{twbr}" / "build"
@@ -223,8 +226,12 @@ int main(void) {{
         (build / "tsa_simavr").symlink_to(firmware_dir / "build" / "tsa_simavr")
         with SimavrBench(SIMAVR_BENCH, SimavrSettings(firmware_dir=build.parent, build=False,
                                                       bootloader="none")) as bench:
-            bench.start()
-            time.sleep(0.3)
+            with serial.Serial(bench.port_path, 250000, timeout=0.05) as port:
+                bench.start()
+                got, deadline = b"", time.monotonic() + 60
+                while b"D" not in got:                             # the byte on the bus is over
+                    assert time.monotonic() < deadline, "the program never finished its byte"
+                    got += port.read(1)
         widths[twbr] = bench.summary["steps"]["min_high_cycles"]
     for twbr, cycles in widths.items():
         assert abs(cycles - 9 * (16 + 2 * twbr)) <= 12, widths     # + a few instructions
