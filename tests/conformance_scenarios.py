@@ -117,7 +117,7 @@ class Exchange:
         self.port.write(raw if raw is not None else encode(message, seq))
         return self.replies((message if raw is None else None, seq))
 
-    def send_for(self, message, kind: type, timeout_s: float = 10.0):
+    def send_for(self, message, kind: type, timeout_s: float = 60.0):
         """Send ``message`` and return the first reply of type ``kind`` (e.g. HEARTBEAT
         -> QUEUE_STATUS), unnormalised."""
         start = len(self.received)

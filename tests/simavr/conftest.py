@@ -42,7 +42,7 @@ def simavr_port(firmware_dir: Path, **settings):
             bench.start()
             # As on a real board, host bytes before the device is up are lost (the UART
             # receives before interrupts are on): wait for BOOT, as BenchClient does.
-            decoder, deadline = MessageDecoder(), time.monotonic() + 10
+            decoder, deadline = MessageDecoder(), time.monotonic() + 120
             bench.boot_message = None
             while bench.boot_message is None:
                 assert time.monotonic() < deadline, "no BOOT from the firmware in simavr"
@@ -57,7 +57,7 @@ def sim_port():
     return serial.serial_for_url("sim://?seed=1", timeout=0)
 
 
-def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 30.0, heartbeat: bool = False) -> msg.Boot:
+def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 180.0, heartbeat: bool = False) -> msg.Boot:
     """The first BOOT among the messages from index ``since`` on; with ``heartbeat`` a
     HEARTBEAT every 0.2 s of wall time meanwhile (answered or not: the device may hang)."""
     start, deadline, beat = since, time.monotonic() + timeout_s, time.monotonic()

@@ -166,7 +166,7 @@ def test_sigterm_to_tsa_bench_run_aborts_and_stops_the_harness(repo_root, firmwa
             break
         time.sleep(0.2)
     proc.send_signal(signal.SIGTERM)
-    stdout, stderr = proc.communicate(timeout=60)
+    stdout, stderr = proc.communicate(timeout=300)
     assert proc.returncode == 130, stdout[-2000:] + stderr[-2000:]
     run = read_run(out)
     assert run.exit_status == "aborted" and run.attrs["backend"] == "simavr" and len(run) > 0
