@@ -19,10 +19,14 @@ from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, fail
 def info(run_files: tuple[str, ...]) -> None:
     """Print each RUN_FILE's metadata, exit status, segment summary and sample statistics.
 
-    Exit 2 when any of them cannot be read (the others are still shown).
+    A run file killed inside a write that cannot be read is rebuilt from its live sidecar
+    (the run's journal) into a new file RUN-rebuilt.h5, which is then shown. Exit 2 when
+    any of them cannot be read (the others are still shown).
     """
     from tsa_bench.console.summary import format_run_info
     from tsa_bench.store.inspect import RunFileError, inspect_run
+    from tsa_bench.store.live import sidecar_path
+    from tsa_bench.store.recover import RecoveryError, recover_run
 
     code = 0
     for i, run_file in enumerate(run_files):
@@ -31,6 +35,16 @@ def info(run_files: tuple[str, ...]) -> None:
         try:
             click.echo(format_run_info(inspect_run(run_file)))
         except RunFileError as exc:
+            if sidecar_path(run_file).is_file():
+                try:
+                    rec = recover_run(run_file)
+                    click.echo(f"note: {rec.message}", err=True)
+                    click.echo(format_run_info(inspect_run(rec.path)))
+                    continue
+                except (RecoveryError, RunFileError) as again:
+                    click.echo(f"error: {again}", err=True)
+                    code = EXIT_BAD_INPUT
+                    continue
             click.echo(f"error: {exc}", err=True)
             code = EXIT_BAD_INPUT
     sys.exit(code)
