@@ -3,13 +3,14 @@
 # binutils-avr, avrdude for the ATmega2560 build; g++ and make for the native unit
 # tests; clang with its runtime (libFuzzer, sanitizers) for the fuzz target; simavr,
 # libsimavr-dev, libelf-dev and pkg-config for the firmware-in-the-loop harness
-# (firmware/sim/, no GL or X libraries needed).
+# (firmware/sim/, no GL or X libraries needed); strace for the tests that kill a run
+# inside a write system call (fault injection, tests/store/test_kill_anywhere.py).
 # Idempotent: does nothing when all are installed; runs apt-get update only when
 # something is missing. Non-interactive; uses sudo when not root.
 set -euo pipefail
 
 PACKAGES=(gcc-avr avr-libc binutils-avr avrdude g++ make clang libclang-rt-14-dev
-          simavr libsimavr-dev libelf-dev pkg-config)
+          simavr libsimavr-dev libelf-dev pkg-config strace)
 
 missing=()
 for pkg in "${PACKAGES[@]}"; do
