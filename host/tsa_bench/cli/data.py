@@ -11,11 +11,13 @@ import sys
 
 import click
 
+from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, fail
 
 
 @click.command()
 @click.argument("run_files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@MAX_MEMORY
 def info(run_files: tuple[str, ...]) -> None:
     """Print each RUN_FILE's metadata, exit status, segment summary and sample statistics.
 
@@ -52,6 +54,7 @@ def info(run_files: tuple[str, ...]) -> None:
 
 @click.command("ls")
 @click.argument("folder", type=click.Path(file_okay=False), default="runs", required=False)
+@MAX_MEMORY
 def ls_cmd(folder: str) -> None:
     """One line per run file in FOLDER (default runs/): status, plan, duration, samples, segments."""
     from pathlib import Path
@@ -82,6 +85,7 @@ def ls_cmd(folder: str) -> None:
               help="Figure file format.")
 @click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
               help="Resolution of raster figures (dots per inch).")
+@MAX_MEMORY
 def report(run_file: str, out_dir: str | None, fmt: str, dpi: int) -> None:
     """Write figures chosen by RUN_FILE's content and an index.html showing them."""
     from tsa_bench.report.run_report import write_run_report
@@ -108,6 +112,7 @@ def report(run_file: str, out_dir: str | None, fmt: str, dpi: int) -> None:
               help="Refresh interval (s).")
 @click.option("--wait", "wait_s", type=float, default=10.0, show_default=True,
               help="How long to wait for a run that has not started yet (s).")
+@MAX_MEMORY
 def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: float) -> None:
     """Show RUN_FILE's latest samples while `tsa-bench run` records it; end with the run.
 
@@ -131,6 +136,7 @@ def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: flo
 @click.option("--csv", "as_csv", is_flag=True, required=True, help="Write CSV files (the only format so far).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Directory for the CSV files (default: next to the run file).")
+@MAX_MEMORY
 def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
     """Write RUN_FILE's samples, segments and events as CSV with units in the headers."""
     from tsa_bench.store import RunFileError

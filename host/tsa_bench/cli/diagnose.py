@@ -15,6 +15,7 @@ from pathlib import Path
 
 import click
 
+from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail, unwritable_reason
 
 
@@ -42,6 +43,7 @@ def _default_out(first_run: str) -> Path:
 @click.option("--max-causes", type=int, default=3, show_default=True, help="Most effects named, one per iteration.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap resampling.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress lines on stderr.")
+@MAX_MEMORY
 def diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
              out_dir: str | None, json_path: str | None, max_causes: int, seed: int, quiet: bool) -> None:
     """Judge the simulation on RUN.h5: a verdict (explained, named, unexplained, model_mismatch), the cause, the gain."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import fail, unwritable_reason
 
 
@@ -15,6 +16,7 @@ from tsa_bench.cli.exits import fail, unwritable_reason
               help="Training run at known loads (repeatable; two or more loads in all): fit a model.")
 @click.option("--out", "out", type=click.Path(dir_okay=False), default=None,
               help="With --train: where to write the model JSON.")
+@MAX_MEMORY
 def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], out: str | None) -> None:
     """Estimate load (N) and strain from resistance and twist, with one-sigma uncertainty.
 

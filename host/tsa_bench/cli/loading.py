@@ -24,6 +24,23 @@ TRUST_FW = click.option("--trust-firmware-dir", is_flag=True,
                         help="Let a simavr bench build firmware in a folder other than this project's firmware/.")
 
 
+def _set_max_memory(ctx: click.Context, param: click.Parameter, value: str | None) -> None:
+    if value is None:
+        return
+    from tsa_bench.store.budget import parse_size, set_memory_budget
+
+    try:
+        set_memory_budget(parse_size(value))
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), ctx, param) from None
+
+
+MAX_MEMORY = click.option("--max-memory", metavar="SIZE", default=None, expose_value=False, is_eager=True,
+                          callback=_set_max_memory,
+                          help="Memory budget for reading files (e.g. 8G; default: 4 GiB or half the machine's "
+                               "memory, or $TSA_BENCH_MAX_MEMORY): a file declaring more data is refused unread.")
+
+
 def is_serial_port(port: str | None) -> bool:
     """A port naming a serial device (not the simulated bench's sim://)."""
     return port is not None and not port.lower().startswith("sim://")

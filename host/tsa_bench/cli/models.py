@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
+from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, unwritable_reason
 
 if TYPE_CHECKING:
@@ -73,6 +74,7 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 @click.option("--load-g", "load_g", type=float, default=None,
               help="preisach/polynomial: fit and score only the samples at this declared load (g).")
 @click.option("--out", "out", required=True, type=click.Path(dir_okay=False), help="Model JSON to write.")
+@MAX_MEMORY
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
             validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
@@ -110,6 +112,7 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
 @click.option("--write-prediction", "out", type=click.Path(dir_okay=False), default=None, metavar="OUT.h5",
               help="Write a copy of RUN with the prediction as /samples/predicted_<output> to OUT.h5 "
                    "(RUN itself is never changed; OUT.h5 is never overwritten).")
+@MAX_MEMORY
 def predict_cmd(model_file: str, run: str, out: str | None) -> None:
     """Print the metrics of MODEL_FILE on RUN; optionally write the prediction beside the measurement."""
     from tsa_bench.models.fitting import FitError, evaluate

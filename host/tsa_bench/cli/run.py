@@ -17,7 +17,8 @@ import click
 
 from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_FAILED, fail
 from tsa_bench.cli.loading import (
-    ALLOW_URL, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit, load_plan_or_exit, meta_pairs,
+    ALLOW_URL, MAX_MEMORY, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit, load_plan_or_exit,
+    meta_pairs,
 )
 
 
@@ -141,6 +142,7 @@ def _report_simavr(fil) -> None:
                    "file linked to it (default name: RUN-resumed.h5 beside it).")
 @ALLOW_URL
 @TRUST_FW
+@MAX_MEMORY
 def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
         speed: float | None, seed: int | None, metas: tuple[str, ...], resume_file: str | None, allow_url: bool,
         trust_firmware_dir: bool) -> None:

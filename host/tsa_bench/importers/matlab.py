@@ -20,13 +20,27 @@ import numpy as np
 
 from tsa_bench.importers.errors import SUPPORTED, ImportFileError
 from tsa_bench.importers.table import Column, SourceTable
+from tsa_bench.store.budget import check_budget
+
+#: Memory per value read (bytes): the stored value and the float copy the table keeps.
+PER_VALUE_BYTES = 16
 
 
 def _v5(path: Path) -> dict[str, Any]:
     import scipy.io
 
     try:
+        declared = scipy.io.whosmat(path)   # names, shapes and classes from the headers: no data read
+    except MemoryError:
+        raise
+    except Exception:   # unreadable headers: loadmat below says why
+        declared = []
+    check_budget(sum(float(np.prod(shape, dtype=float)) for _, shape, _ in declared) * PER_VALUE_BYTES,
+                 str(path), "its variables")
+    try:
         raw = scipy.io.loadmat(path, simplify_cells=True)
+    except MemoryError:
+        raise
     except Exception as exc:  # scipy raises ValueError, TypeError, ... on damaged files
         raise ImportFileError(f"{path}: looks like a MATLAB v5 .mat file but cannot be read "
                               f"({type(exc).__name__}: {exc}); supported formats: {SUPPORTED}") from None
@@ -52,6 +66,14 @@ def _v73(path: Path) -> dict[str, Any]:
         raise ImportFileError(f"{path}: {why}")
     try:
         with h5py.File(path, "r") as f:
+            declared = [0.0]
+
+            def add(_name: str, obj: Any) -> None:
+                if isinstance(obj, h5py.Dataset) and obj.shape is not None:
+                    declared[0] += float(np.prod(obj.shape, dtype=float)) * (obj.dtype.itemsize + 8)
+
+            f.visititems(add)
+            check_budget(declared[0], str(path), "its variables")
             return {k: _h5(v) for k, v in f.items() if not k.startswith("#")}
     except OSError as exc:
         raise ImportFileError(f"{path}: looks like a MATLAB v7.3 .mat file but cannot be read ({exc}); "

@@ -3,8 +3,11 @@
 Contract columns the source lacks are filled: float columns NaN, ``segment`` -1 (or the
 segments found), ``motor_moving`` from ``turns``, ``counter`` the row number,
 ``step_position``/``position_raw``/``resistance_raw`` 0, ``adc_flags`` bit 2 where
-resistance is NaN and bit 3 where length is NaN. The file is written to a temporary name
-and renamed; an existing file is never replaced, and nothing is left behind on failure.
+resistance is NaN and bit 3 where length is NaN. The file is written under a random
+temporary name beside ``out`` (``OUT.h5.<random>.importing``, created exclusively, never
+through a link) and published with a hard link that refuses an existing name
+(:mod:`tsa_bench.outputs`): an existing file or link is never replaced or written
+through, and nothing is left behind on failure.
 """
 
 from __future__ import annotations
@@ -12,12 +15,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import h5py
+import dataclasses
+
 import numpy as np
 
+from tsa_bench.importers.errors import ImportFileError
+from tsa_bench.outputs import OutputExists, writing
 from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
-from tsa_bench.store.hdf5 import CHUNK, RunWriter
-from tsa_bench.store.replace import replacing
+from tsa_bench.store.hdf5 import RunWriter
 
 
 def fill(data: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
@@ -41,24 +46,26 @@ def fill(data: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
 
 def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras: dict[str, tuple[np.ndarray, str]],
               segments: list[SegmentRecord], reason: str) -> Path:
-    """Write the run file ``out`` (module contract)."""
-    if out.exists():
-        raise FileExistsError(out)
+    """Write the run file ``out`` (module contract); FileExistsError if it exists."""
     n = len(samples["t"])
-    with replacing(out, ".importing") as tmp:
-        writer = RunWriter(tmp)
-        writer.on_start(start)
-        writer.on_samples(SampleBlock(samples))
-        for s in segments:
-            writer.on_segment(s)
-        writer.on_stop(RunStop("success", reason, float(samples["t"][-1]), n, 0, 0, 0.0))
-        if extras:
-            with h5py.File(tmp, "a") as f:
-                g = f["samples"]
-                for name, (values, unit) in extras.items():
-                    ds = g.create_dataset(name, data=values.astype("f8"), maxshape=(None,), chunks=(CHUNK,),
-                                          fillvalue=np.nan)
-                    ds.attrs["units"] = unit
+    columns = {**samples, **{name: values.astype("f8") for name, (values, _) in extras.items()}}
+    start = dataclasses.replace(start, extra_columns={name: ("f8", unit, {}) for name, (_, unit) in extras.items()})
+    try:
+        with writing(out, tag="importing") as tmp:
+            writer = RunWriter(tmp)
+            try:
+                writer.on_start(start)
+                writer.on_samples(SampleBlock(columns))
+                for s in segments:
+                    writer.on_segment(s)
+                writer.on_stop(RunStop("success", reason, float(samples["t"][-1]), n, 0, 0, 0.0))
+                trouble = writer.full or writer.broken or writer.close_error
+                if trouble:
+                    raise ImportFileError(f"cannot write {out}: {trouble}; nothing was written")
+            finally:
+                writer.discard()   # a failure: its file is removed (a closed one is left to be published)
+    except OutputExists as exc:
+        raise FileExistsError(str(exc)) from None
     return out
 
 
