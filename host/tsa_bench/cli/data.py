@@ -11,8 +11,8 @@ import sys
 
 import click
 
-from tsa_bench.cli.loading import MAX_MEMORY
-from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, fail
+from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, check_output_folder, fail
+from tsa_bench.cli.loading import FORCE, MAX_MEMORY
 
 
 @click.command()
@@ -86,14 +86,23 @@ def ls_cmd(folder: str) -> None:
 @click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
               help="Resolution of raster figures (dots per inch).")
 @MAX_MEMORY
-def report(run_file: str, out_dir: str | None, fmt: str, dpi: int) -> None:
-    """Write figures chosen by RUN_FILE's content and an index.html showing them."""
+@FORCE
+def report(run_file: str, out_dir: str | None, fmt: str, dpi: int, force: bool) -> None:
+    """Write figures chosen by RUN_FILE's content and an index.html showing them.
+
+    A folder that already holds files (an earlier report) is refused unless --force.
+    """
+    from pathlib import Path
+
     from tsa_bench.report.run_report import write_run_report
     from tsa_bench.store import RunFileError
 
+    check_output_folder(out_dir or Path(run_file).with_name(Path(run_file).stem + "_report"), force)
+    from tsa_bench.outputs import OutputExists
+
     try:
         rep = write_run_report(run_file, out_dir, fmt=fmt, dpi=dpi)
-    except RunFileError as exc:
+    except (RunFileError, OutputExists) as exc:
         fail(str(exc))
     except OSError as exc:
         fail(f"cannot write the report ({exc.filename or out_dir or run_file}): {exc.strerror or exc}", EXIT_FAILED)
@@ -137,8 +146,13 @@ def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: flo
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Directory for the CSV files (default: next to the run file).")
 @MAX_MEMORY
-def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
-    """Write RUN_FILE's samples, segments and events as CSV with units in the headers."""
+@FORCE
+def export(run_file: str, as_csv: bool, out_dir: str | None, force: bool) -> None:
+    """Write RUN_FILE's samples, segments and events as CSV with units in the headers.
+
+    Each file is written whole or not at all; an existing one is refused unless --force.
+    """
+    from tsa_bench.outputs import OutputExists
     from tsa_bench.store import RunFileError
     from tsa_bench.store.csv_export import export_csv
 
@@ -148,7 +162,7 @@ def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
     try:
         for path in export_csv(run_file, out_dir):
             click.echo(f"wrote {path}")
-    except RunFileError as exc:
+    except (RunFileError, OutputExists) as exc:
         fail(str(exc))
     except OSError as exc:
         fail(f"cannot write the CSV files ({exc.filename or out_dir}): {exc.strerror or exc}", EXIT_FAILED)

@@ -2,8 +2,9 @@
 (:mod:`tsa_bench.outputs.files`)."""
 
 from tsa_bench.outputs.files import (
-    OutputExists, create_new, open_new, publish, refuse_existing, reserve_free_name, same_file, temp_name, writing,
+    OutputExists, allow_replace, create_new, open_new, open_output, publish, refuse_existing, replace_allowed, reserve_free_name,
+    same_file, save_figure, temp_name, write_text, writing,
 )
 
-__all__ = ["OutputExists", "create_new", "open_new", "publish", "refuse_existing", "reserve_free_name", "same_file",
-           "temp_name", "writing"]
+__all__ = ["OutputExists", "allow_replace", "create_new", "open_new", "open_output", "publish", "refuse_existing", "replace_allowed",
+           "reserve_free_name", "same_file", "save_figure", "temp_name", "write_text", "writing"]

@@ -19,19 +19,27 @@ Contract of :func:`writing`: ``with writing(path, force) as tmp:`` refuses at on
 same folder that does not exist yet (the caller creates it exclusively: ``open_new(tmp)``
 or h5py mode ``"x"``); when the block ends without an exception, publishes it as ``path``
 (refusing then too if ``path`` appeared meanwhile). On any exit the temporary is gone.
+
+Derived outputs (a model, a report, figures, CSV, JSON) are written through
+:func:`write_text`, :func:`open_output` and :func:`save_figure`, which do the above; their
+``force`` defaults to what the command allows (:func:`replace_allowed`, set by a command's
+``--force``): an existing file is refused unless the user asked to replace it.
 """
 
 from __future__ import annotations
 
+import contextvars
 import errno
+import io
 import os
 import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import BinaryIO
+from typing import IO, Any, BinaryIO
 
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+_replace_allowed: contextvars.ContextVar[bool] = contextvars.ContextVar("tsa_bench_replace_allowed", default=False)
 _CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 #: errno values of a file system without hard links (FAT, some network shares)
 _NO_LINKS = {errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EMLINK, errno.EXDEV}
@@ -114,10 +122,12 @@ def publish(tmp: Path, path: Path, force: bool = False) -> None:
 
 
 @contextmanager
-def writing(path: str | Path, force: bool = False, tag: str = "writing",
+def writing(path: str | Path, force: bool | None = None, tag: str = "writing",
             hint: str = "give --force to replace it") -> Iterator[Path]:
-    """A temporary path beside ``path`` that becomes ``path`` on success (module contract)."""
+    """A temporary path beside ``path`` that becomes ``path`` on success (module contract);
+    ``force`` None: as the command allows (:func:`replace_allowed`)."""
     p = Path(path)
+    force = _force(force)
     refuse_existing(p, force, hint)
     tmp = temp_name(p, tag)
     try:
@@ -142,3 +152,54 @@ def same_file(fd: int, path: str | Path) -> bool:
     except OSError:
         return False
     return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+@contextmanager
+def replace_allowed(allowed: bool = True) -> Iterator[None]:
+    """Within the block, derived outputs may replace existing files (a command's ``--force``)."""
+    token = _replace_allowed.set(allowed)
+    try:
+        yield
+    finally:
+        _replace_allowed.reset(token)
+
+
+def allow_replace() -> bool:
+    """Whether derived outputs may replace existing files now (:func:`replace_allowed`)."""
+    return _replace_allowed.get()
+
+
+def _force(force: bool | None) -> bool:
+    return _replace_allowed.get() if force is None else force
+
+
+@contextmanager
+def open_output(path: str | Path, mode: str = "w", force: bool | None = None, **kw: Any) -> Iterator[IO]:
+    """A file object writing ``path`` whole or not at all (module contract); ``mode`` "w" (text,
+    UTF-8 unless ``encoding`` is given) or "wb"."""
+    if mode not in ("w", "wb"):
+        raise ValueError(f"open_output writes new files: mode 'w' or 'wb', not {mode!r}")
+    p = Path(path)
+    with writing(p, force) as tmp:
+        raw = open_new(tmp)
+        f: IO = raw if mode == "wb" else io.TextIOWrapper(raw, encoding=kw.pop("encoding", "utf-8"), **kw)
+        with f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())   # whole on disk before it gets its name (a full disk fails here, not later)
+
+
+def write_text(path: str | Path, text: str, force: bool | None = None, encoding: str = "utf-8") -> Path:
+    """Write ``text`` to ``path`` (module contract); returns the path."""
+    with open_output(path, "w", force, encoding=encoding) as f:
+        f.write(text)
+    return Path(path)
+
+
+def save_figure(fig: Any, path: str | Path, force: bool | None = None, **kw: Any) -> Path:
+    """A matplotlib figure saved to ``path`` in the format of its suffix (module contract)."""
+    p = Path(path)
+    kw.setdefault("format", p.suffix.lstrip(".").lower() or "png")
+    with open_output(p, "wb", force) as f:
+        fig.savefig(f, **kw)
+    return p
