@@ -68,6 +68,14 @@ def test_the_disk_filling_up_mid_run_ends_it_failed_with_a_readable_file(tmp_pat
     assert "stop_sent" in {k.decode() for k in run.events["kind"]}
     info = _cli("info", str(out))
     assert info.returncode == 0 and "failed: disk full" in info.stdout, info.stdout + info.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]   # the journal went with the closed file
+    watch = _cli("watch", str(out), "--plain", "--wait", "0")
+    assert watch.returncode == 1 and "run ended: failed (disk full" in watch.stdout, watch.stdout + watch.stderr
+    csv = tmp_path / "csv"   # and an export onto the full disk: an error, no truncated CSV
+    res = _cli("export", str(out), "--csv", "--out", str(csv), limit_bytes=1_000_000)
+    assert res.returncode == 1 and "cannot write the CSV files" in res.stderr and "Traceback" not in res.stderr, \
+        res.stderr
+    assert list(csv.iterdir()) == []
 
 
 def test_a_small_tmpfs_filling_up_mid_run(tmp_path):

@@ -205,6 +205,30 @@ def test_watch_says_a_killed_run_was_killed(tmp_path):
     assert res.exit_code == 1 and "run was killed" in res.output and "never closed" in res.output
 
 
+def _recorded_by_a_child(out) -> None:
+    simulate(PROTO["stiffness-3ply"], out, consumers=(LiveSidecar(out, remove_at_end=False),))
+    os._exit(0)
+
+
+def test_a_journal_without_its_end_record_beside_a_closed_file_is_reported_as_the_file_ended(tmp_path):
+    """A full disk can refuse the journal its end record after the run file was closed: the
+    writer is gone, and `watch` reports how the file says the run ended, not a kill."""
+    import multiprocessing
+
+    out = tmp_path / "run.h5"
+    child = multiprocessing.get_context("fork").Process(target=_recorded_by_a_child, args=(out,))
+    child.start()
+    child.join(120)
+    assert child.exitcode == 0
+    side = sidecar_path(out)
+    with open(side, "r+b") as f:   # the end record was never written
+        f.truncate(side.stat().st_size - RECORD.itemsize)
+    w = _cli("watch", str(out), "--plain", "--interval", "0.1")
+    stdout, stderr = w.communicate(timeout=60)
+    assert w.returncode == 0 and "run ended: success (all segments done)" in stdout, stdout + stderr
+    assert "killed" not in stdout
+
+
 def test_watch_without_anything_to_watch(tmp_path):
     res = CliRunner().invoke(main, ["watch", str(tmp_path / "none.h5"), "--wait", "0"])
     assert res.exit_code == 2 and "no such run file" in res.output

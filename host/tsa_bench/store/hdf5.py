@@ -278,10 +278,12 @@ class RunWriter:
         self._pending.append(block)
         self._pending_rows += len(block)
         if self.live is not None and self.live.active and not self.full:
-            try:   # the journal must not take the room the file needs for what it holds
+            try:   # the journal must not take the room the file needs for what it holds, nor outgrow its own
+                more = len(block) * self.live.dtype.itemsize
                 ensure_room(self.path, journal_bytes(len(block), self.live.dtype.itemsize, self._pending_rows,
                                                      len(self._segments), len(self._events)),
                             f"journaling {len(block)} more samples")
+                ensure_room(self.live.path, more, f"journaling {len(block)} more samples")   # (a file size limit)
             except StorageFull as exc:
                 self.full = str(exc)
                 raise
@@ -383,6 +385,8 @@ class RunWriter:
         if self._f is None or self.broken:
             return False
         try:
+            if self.live is not None and self.live.active:   # recovery may finish the file from it
+                self._f.attrs["journal_kept"] = self.live.path.name
             self._finish("failed", f"host error while closing the run file: {self.close_error}; "
                          f"the run itself ended {stop.exit_status} ({stop.reason})", stop)
             return False   # the file lacks what could not be written: the journal keeps it

@@ -5,7 +5,9 @@ killed inside a flush, a file HDF5 cannot read, or while creating it, an empty f
 its journal ``RUN.h5.live`` (:mod:`tsa_bench.store.live`), which holds every sample,
 segment record and event handed to the writer, raw counts included. :func:`recover_run`
 refuses (:class:`RecoveryError`) while the process that wrote the journal is still alive
-on this host, and never touches a file whose status is not "running". Otherwise:
+on this host, and never touches a file whose status is not "running" (except one whose
+writer failed while closing it and kept its journal: root attribute ``journal_kept``).
+Otherwise:
 
 * with a version-4 journal (it has the run's start document), the run is rebuilt from the
   journal alone into a new file written exclusively beside the run file (the same writer,
@@ -79,7 +81,7 @@ def recover_run(run_path: str | Path) -> Recovery:
             raise RecoveryError(f"{path} is still being recorded (process {tail.header.get('pid')} is alive); "
                                 "wait for it to end or stop it first")
         run, damage = _read(path)
-        if run is not None and run.exit_status != "running":
+        if run is not None and run.exit_status != "running" and not (tail is not None and run.attrs.get("journal_kept")):
             return Recovery(path, 0, False, f"{path} was closed ({run.exit_status}); nothing to recover")
         if tail is not None and tail.version == 4:
             result = _rebuild(path, tail, run, damage)
