@@ -162,3 +162,16 @@ def test_run_and_import_never_replace_a_file_and_ignore_links_at_temporary_names
     (tmp_path / "imported.h5").unlink()
     res = _invoke("import", src, "--out", tmp_path / "imported.h5")
     assert res.exit_code == 0 and not (tmp_path / "imported.h5").is_symlink() and victim.read_text() == SECRET
+
+
+def test_jog_never_replaces_a_file(tmp_path):
+    victim = _victim(tmp_path)
+    for target in (victim, _plant(tmp_path / "link.h5", victim)):
+        res = CliRunner().invoke(main, ["jog", "--port", "sim://", "--script", "-", "--output", str(target)],
+                                 input="+1\nquit\n")
+        assert res.exit_code == 2 and "already exists" in res.output, res.output
+    assert victim.read_text() == SECRET
+    res = CliRunner().invoke(main, ["jog", "--port", "sim://", "--script", "-", "--out", str(tmp_path / "runs")],
+                             input="+1\nquit\n")
+    assert res.exit_code == 0, res.output
+    assert [p.suffix for p in (tmp_path / "runs").iterdir()] == [".h5"]   # the session's file alone
