@@ -3,7 +3,8 @@
 
 Builds the files of tests/store/hostile.py (a run file declaring 73 columns of 20,000,000
 rows, chunks never written; a 2 KB MATLAB v7.3 file declaring a 1 x 3e9 matrix; run files
-on which the HDF5 library loops) and one healthy run file of 2,000,000 rows, then runs each
+on which the HDF5 library loops), a protocol holding a list of a million numbers and one
+healthy run file of 2,000,000 rows, then runs each
 command in its own process and prints its exit code, wall time, CPU time (user + system;
 the wall time of a busy machine is longer) and peak resident memory (GNU time's %M),
 beside the load average. The hostile files must be refused (exit 2) within the memory
@@ -69,6 +70,8 @@ def main() -> None:
         for i in range(5):
             looping_file(loops / f"loop{i}.h5")
         healthy(d / "healthy.h5")
+        (d / "big-list.yaml").write_text("name: big\nsteps:\n  - hold: {duration_s: 1}\nmetadata:\n  notes: ["
+                                         + ",".join(["0.5"] * 1_000_000) + "]\n")
         sizes = {p.name: p.stat().st_size for p in (d / "huge-run.h5", d / "huge.mat", loops / "loop0.h5",
                                                      d / "healthy.h5")}
         print("files: " + ", ".join(f"{k} {v:,} bytes" for k, v in sizes.items()))
@@ -81,6 +84,7 @@ def main() -> None:
             ("info: HDF5 library loops on it", ["info", "loops/loop0.h5"]),
             ("watch: the same", ["watch", "loops/loop0.h5", "--wait", "0"]),
             ("ls: a folder of 5 such files", ["ls", "loops"]),
+            ("validate: 4 MB protocol, a 1,000,000-value list", ["validate", "big-list.yaml"]),
             ("info: healthy 2,000,000-row run (reference)", ["info", "healthy.h5"]),
         ]
         print(f"\n{'case':<46} {'exit':>4} {'wall s':>7} {'cpu s':>6} {'RSS MiB':>8}  output")

@@ -116,12 +116,12 @@ def test_a_report_folder_with_files_is_refused_without_force_and_links_in_it_are
     res = _invoke(*args)
     assert res.exit_code == 2 and "already holds files" in res.output and "--force" in res.output, res.output
     victim = _victim(tmp_path)
-    first = out / written[0]
-    first.unlink()
-    _plant(first, victim)
+    for name in written:   # a link planted at every name the command writes (figures, text, JSON)
+        (out / name).unlink()
+        _plant(out / name, victim)
     res = _invoke(*args, "--force")
-    assert res.exit_code == 0 and not first.is_symlink() and victim.read_text() == SECRET, res.output
-    assert sorted(p.name for p in out.iterdir()) == written
+    assert res.exit_code == 0 and victim.read_text() == SECRET, res.output
+    assert not [p for p in out.iterdir() if p.is_symlink()] and sorted(p.name for p in out.iterdir()) == written
     linked = tmp_path / "linked"
     linked.symlink_to(out, target_is_directory=True)
     res = _invoke(*(a if a != out else linked for a in args), "--force")
@@ -175,3 +175,27 @@ def test_jog_never_replaces_a_file(tmp_path):
                              input="+1\nquit\n")
     assert res.exit_code == 0, res.output
     assert [p.suffix for p in (tmp_path / "runs").iterdir()] == [".h5"]   # the session's file alone
+
+
+def test_a_file_that_appears_while_an_output_is_written_is_not_replaced(tmp_path):
+    """Between the early check and the publishing rename another process creates the output
+    (a file or a link): without force the output is refused and the newcomer kept; with
+    force a link is replaced, never followed. No temporary file is left either way."""
+    from tsa_bench.outputs import OutputExists, open_new, writing
+
+    victim = _victim(tmp_path)
+    out = tmp_path / "out.txt"
+    for planted in ("file", "link"):
+        with pytest.raises(OutputExists):
+            with writing(out) as tmp:
+                with open_new(tmp) as f:
+                    f.write(b"mine\n")
+                out.write_text("theirs\n") if planted == "file" else _plant(out, victim)
+        assert (out.read_text() == "theirs\n") if planted == "file" else out.is_symlink()
+        assert victim.read_text() == SECRET and sorted(p.name for p in tmp_path.iterdir()) == ["out.txt", "victim.txt"]
+        out.unlink()
+    with writing(out, force=True) as tmp:
+        with open_new(tmp) as f:
+            f.write(b"mine\n")
+        _plant(out, victim)
+    assert not out.is_symlink() and out.read_text() == "mine\n" and victim.read_text() == SECRET

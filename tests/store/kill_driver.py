@@ -1,12 +1,14 @@
 """A run written by the real writer from synthetic documents, to be killed anywhere.
 
-``python -m tests.store.kill_driver OUT.h5 [--kill-at-append K] [--kill-at-flush K]`` writes
+``python -m tests.store.kill_driver OUT.h5 [--kill-at-append K] [--kill-at-flush K]
+[--kill-after-flush K]`` writes
 one run with its journal (``RunWriter(live=True)``): 40 blocks of samples with the
 ``track_length`` extra columns, a segment record after each block, an event after every
 third, small chunks so that flushes and appends write whole chunks throughout, and a
 flush at every segment end. ``--kill-at-append K`` SIGKILLs the process inside the K-th
 column append (before the library call), ``--kill-at-flush K`` inside the K-th file
-flush; without them it is killed from outside (``strace -e inject=pwrite64:signal=KILL``)
+flush, ``--kill-after-flush K`` as the K-th file flush returns (the file holds more than at
+any earlier instant); without them it is killed from outside (``strace -e inject=pwrite64:signal=KILL``)
 or runs to the end. Deterministic: the same documents and the same writes every time.
 """
 
@@ -49,15 +51,18 @@ def block(i: int) -> SampleBlock:
     return SampleBlock(cols)
 
 
-def _kill_on_call(owner, name: str, at: int) -> None:
+def _kill_on_call(owner, name: str, at: int, after: bool = False) -> None:
     calls = [0]
     original = getattr(owner, name)
 
     def hooked(self, *args, **kwargs):
         calls[0] += 1
-        if calls[0] == at:
+        if calls[0] == at and not after:
             os.kill(os.getpid(), signal.SIGKILL)
-        return original(self, *args, **kwargs)
+        result = original(self, *args, **kwargs)
+        if calls[0] == at and after:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return result
 
     setattr(owner, name, hooked)
 
@@ -67,11 +72,14 @@ def main() -> None:
     ap.add_argument("out")
     ap.add_argument("--kill-at-append", type=int, default=0)
     ap.add_argument("--kill-at-flush", type=int, default=0)
+    ap.add_argument("--kill-after-flush", type=int, default=0)
     args = ap.parse_args()
     if args.kill_at_append:
         _kill_on_call(hdf5._Appender, "append", args.kill_at_append)
     if args.kill_at_flush:
         _kill_on_call(h5py.File, "flush", args.kill_at_flush)
+    if args.kill_after_flush:
+        _kill_on_call(h5py.File, "flush", args.kill_after_flush, after=True)
     w = RunWriter(args.out, min_flush_interval_s=0.0, chunk_rows=CHUNK_ROWS, live=True)
     w.on_start(start())
     for i in range(BLOCKS):

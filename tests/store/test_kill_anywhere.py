@@ -41,15 +41,19 @@ def test_killed_at_write_system_calls_spread_over_a_whole_run(tmp_path):
     _assert_all_recovered(results)
 
 
-@pytest.mark.parametrize("where, points", [("append", (1, 15, 16, 150, APPENDS)), ("flush", (1, 2, 30, FLUSHES))])
+@pytest.mark.parametrize("where, points", [("append", (1, 15, 16, 150, APPENDS)), ("flush", (1, 2, 30, FLUSHES)),
+                                           ("after-flush", (4, 5, 29, 53))])
 def test_killed_inside_appends_and_flushes(tmp_path, where, points):
-    """SIGKILL inside the K-th column append or file flush (as the writer enters it)."""
+    """SIGKILL inside the K-th column append or file flush (as the writer enters it), or as
+    the K-th flush returns (whole chunks just stored; flushes 5, 29 and 53 are those a sample
+    block starts, with the block not yet handed on)."""
     import subprocess
 
     results = {}
     for k in points:
         out = tmp_path / f"{where}{k}.h5"
-        res = subprocess.run(DRIVER + [str(out), f"--kill-at-{where}", str(k)], env=ENV, cwd=ROOT,
+        option = "--kill-after-flush" if where == "after-flush" else f"--kill-at-{where}"
+        res = subprocess.run(DRIVER + [str(out), option, str(k)], env=ENV, cwd=ROOT,
                              capture_output=True, text=True, timeout=120)
         assert res.returncode == -9, f"{where} {k}: {res.returncode} {res.stderr[-500:]}"
         results[f"{where} {k}"] = check_recovered(out)

@@ -129,18 +129,33 @@ def test_the_probe_gives_up_on_a_looping_library_after_its_cpu_limit(tmp_path):
         read_run(bad)
 
 
-def test_the_probe_reads_no_column_data(tmp_path):
-    """A column whose middle chunk is garbage passes the probe (which reads the chunk index
-    and the end rows, never the data) and is refused by the reader, which reads it."""
+def test_the_probe_reads_no_column_data(tmp_path, monkeypatch):
+    """The probe reads attributes, chunk indexes, text tables and the end rows of everything
+    else: never more than one value at a time of a sample column, however long."""
     path = _small_run(tmp_path / "run.h5", rows=100_000)
-    with h5py.File(path, "r") as f:
-        info = f["samples/length"].id.get_chunk_info(5)
-    with open(path, "r+b") as f:
-        f.seek(info.byte_offset)
-        f.write(b"\xff" * info.size)
-    assert probe.check_hdf5_terminates(path) is None
-    with pytest.raises(RunFileError, match="damaged run file"):
-        read_run(path)
+    reads: list[tuple[str, int]] = []
+    real = h5py.Dataset.__getitem__
+
+    def counted(self, key):
+        value = real(self, key)
+        reads.append((self.name, int(np.size(value))))
+        return value
+
+    monkeypatch.setattr(h5py.Dataset, "__getitem__", counted)
+    probe._read_everything_small(path)   # what the probe's child runs
+    columns = [(name, n) for name, n in reads if name.startswith("/samples/")]
+    assert len({name for name, _ in columns}) == len(SAMPLE_COLUMNS) and max(n for _, n in columns) == 1
+    assert ("/segments", 0) in reads or any(name == "/segments" for name, _ in reads)
+
+
+def test_ls_reads_a_huge_segment_table_within_the_budget(tmp_path):
+    huge_run_file(tmp_path / "huge.h5", rows=10, extras=0)
+    with h5py.File(tmp_path / "huge.h5", "a") as f:
+        f.create_dataset("segments", shape=(20_000_000,), maxshape=(None,), chunks=(4096,),
+                         dtype=np.dtype([("index", "i4"), ("kind", "u1"), ("completed", "u1")]))
+    res = CliRunner().invoke(main, ["ls", str(tmp_path), "--max-memory", "64M"])
+    assert res.exit_code == 0 and "reading /segments would need" in res.output and "memory budget" in res.output, \
+        res.output
 
 
 @pytest.fixture(autouse=True)
