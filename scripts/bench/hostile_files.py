@@ -29,7 +29,7 @@ sys.path.insert(0, str(ROOT / "host"))
 import numpy as np  # noqa: E402
 
 from tests.store.hostile import huge_matlab_file, huge_run_file, looping_file  # noqa: E402
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock  # noqa: E402
+from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock  # noqa: E402
 from tsa_bench.store import RunWriter  # noqa: E402
 
 ENV = {**os.environ, "PYTHONPATH": f"{ROOT / 'host'}{os.pathsep}{ROOT}"}

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from tsa_bench.cli import main
-from tsa_bench.documents import DocumentError, YamlLimits, parse_yaml
+from tsa_bench.userfiles import DocumentError, YamlLimits, parse_yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 STEPS = "defaults: {rate_turns_per_s: 2, accel_turns_per_s2: 20}\nsteps:\n  - move_to: {turns: 1}\n  - hold: {duration_s: 1}\n"

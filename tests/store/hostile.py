@@ -18,7 +18,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 
 ROWS = 20_000_000
 EXTRAS = 60

@@ -21,7 +21,7 @@ import signal
 import h5py
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundocs import SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS
 from tsa_bench.store import RunWriter
 from tsa_bench.store import hdf5

@@ -18,7 +18,7 @@ from click.testing import CliRunner
 from tests.importers import fixtures
 from tests.store.hostile import huge_matlab_file, huge_run_file, looping_file
 from tsa_bench.cli import main
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
+from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
 from tsa_bench.store import RunFileError, RunWriter, probe, read_run
 from tsa_bench.store.budget import parse_size, set_memory_budget
 

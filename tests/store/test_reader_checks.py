@@ -54,7 +54,7 @@ def test_a_killed_run_is_read_as_far_as_its_chunks_were_stored(tmp_path):
     """Killed inside a flush: the declared length ran ahead of the stored chunks (which read
     back as fill values, 0 in an integer column) and a chunk index entry points at bytes that
     do not decode. Read as far as every column was stored and decodes, never the fill values."""
-    from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
+    from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
     from tsa_bench.store import RunWriter
 
     path = tmp_path / "killed.h5"

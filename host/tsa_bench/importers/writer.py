@@ -21,7 +21,7 @@ import numpy as np
 
 from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.outputs import OutputExists, writing
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.store.hdf5 import RunWriter
 
 

@@ -1,6 +1,6 @@
 """HDF5 run writer: the run-file contract of docs/run-format.md, written crash-safe.
 
-Contract: :class:`RunWriter` is a :class:`~tsa_bench.runner.documents.RunConsumer`.
+Contract: :class:`RunWriter` is a :class:`~tsa_bench.rundocs.RunConsumer`.
 ``on_start`` creates the file exclusively (the name is reserved with O_EXCL, never through
 a link; the HDF5 file is built under a random temporary name beside it and renamed onto
 the reservation once its header is written) with ``exit_status`` "running"; samples,
@@ -56,7 +56,7 @@ import numpy as np
 from h5py import h5s
 
 import tsa_bench
-from tsa_bench.runner.documents import (
+from tsa_bench.rundocs import (
     SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord,
 )
 from tsa_bench.store.space import HEADER_BYTES, StorageFull, ensure_room, flush_bytes, journal_bytes

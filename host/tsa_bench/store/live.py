@@ -58,9 +58,9 @@ from typing import Any
 
 import numpy as np
 
-from tsa_bench.documents import DocumentError, parse_json
 from tsa_bench.outputs import create_new, temp_name
-from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundocs import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.userfiles import DocumentError, parse_json
 
 MAGIC = b"TSALIVE1"
 VERSION = 4

@@ -36,13 +36,14 @@ import h5py
 import numpy as np
 
 from tsa_bench.outputs import reserve_free_name, temp_name
-from tsa_bench.runner.documents import EventRecord, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundata import RunData
+from tsa_bench.rundocs import EventRecord, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.store.hdf5 import EVENT_DTYPE, RunWriter
 from tsa_bench.store.live import (
     RECORD, SAMPLE_FIELDS, LiveFormatError, LiveTail, sidecar_path, start_from_document,
 )
 from tsa_bench.store.probe import check_hdf5_terminates
-from tsa_bench.store.reader import RunData, RunFileError, read_run, stored_rows
+from tsa_bench.store.reader import RunFileError, read_run, stored_rows
 
 
 class RecoveryError(ValueError):
