@@ -186,6 +186,7 @@ def _rebuild(path: Path, tail: LiveTail, run: RunData | None, damage: str) -> Re
         if writer.close_error or writer.broken:
             raise RecoveryError(f"cannot write the recovered run: {writer.close_error or writer.broken}")
         with h5py.File(tmp, "r+") as f:
+            del f.attrs["wall_time_s"]   # unknown: the journal does not say when the process died
             f.attrs["recovered_samples"] = k
             if not replace:
                 f.attrs["rebuilt_from"] = path.name
