@@ -11,15 +11,9 @@ import pytest
 from click.testing import CliRunner
 
 from tests.runner.helpers import plan_from_text, run_plan
+from tests.store.test_reader_checks import PLAN
 from tsa_bench.cli import main
 
-PLAN = """name: short
-defaults: {rate_turns_per_s: 2, accel_turns_per_s2: 20}
-steps:
-  - move_to: {turns: 3}
-  - hold: {duration_s: 2}
-  - move_to: {turns: 0}
-"""
 SECRET = "the victim's file\n"
 
 
