@@ -155,8 +155,10 @@ def main() -> None:
     ap.add_argument("--phase-kills", type=int, default=60, help="(b) kills inside flushes and appends (default 60)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the killed runs in this folder")
     ap.add_argument("--verbose", action="store_true", help="one line per kill")
-    ap.add_argument("rest", nargs=argparse.REMAINDER, help="(link) arguments for scripts/link_campaign.py")
-    args = ap.parse_args()
+    args, rest = ap.parse_known_args()   # (link) the other arguments go to scripts/link_campaign.py
+    if rest and args.family != "link":
+        ap.error(f"unrecognized arguments: {' '.join(rest)}")
+    args.rest = rest
     if args.family != "link" and STRACE is None:
         raise SystemExit("strace is needed (apt-get install strace; scripts/setup-firmware-toolchain.sh)")
     names = ["kill-writes", "kill-phases"] if args.family == "all" else [args.family]
