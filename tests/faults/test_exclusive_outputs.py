@@ -193,3 +193,32 @@ def test_a_file_that_appears_while_an_output_is_written_is_not_replaced(tmp_path
             f.write(b"mine\n")
         _plant(out, victim)
     assert not out.is_symlink() and out.read_text() == "mine\n" and victim.read_text() == SECRET
+
+
+def test_an_import_whose_temporary_file_is_swapped_for_a_link_writes_nothing_through_it(tmp_path, monkeypatch):
+    """The import writer reopens its temporary file by name (HDF5 opens by name) to add the
+    columns: a link swapped in for it just before is refused; the file it points at is not
+    written and no output appears."""
+    import h5py
+
+    from tsa_bench.importers import writer
+
+    victim = tmp_path / "victim.h5"
+    with h5py.File(victim, "w") as f:
+        f["secret"] = [1.0, 2.0]
+    before = victim.read_bytes()
+    opened = h5py.File
+
+    def swap_then_open(name, mode="r", *args, **kw):
+        if str(name).endswith(".importing") and mode == "a":
+            os.unlink(name)
+            os.symlink(victim, name)
+        return opened(name, mode, *args, **kw)
+
+    monkeypatch.setattr(writer.h5py, "File", swap_then_open)
+    src = tmp_path / "lab.csv"
+    src.write_text("t [s],turns [turn],length [mm]\n0,0,250\n0.1,1,249\n0.2,2,248\n")
+    res = _invoke("import", src, "--out", tmp_path / "imported.h5")
+    assert res.exit_code != 0 and "replaced while it was written" in res.output, res.output
+    assert victim.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lab.csv", "victim.h5"]

@@ -20,8 +20,6 @@ columns that carry data.
 
 from __future__ import annotations
 
-import os
-import stat
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -30,7 +28,7 @@ import h5py
 import numpy as np
 
 from tsa_bench.importers.errors import ImportFileError
-from tsa_bench.outputs import OutputExists, writing
+from tsa_bench.outputs import OutputExists, same_file, writing
 from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SegmentRecord
 from tsa_bench.store.hdf5 import RunWriter
 
@@ -85,10 +83,8 @@ def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras
                     raise ImportFileError(f"cannot write {out}: {trouble}; nothing was written")
             finally:
                 writer.discard()   # a failure: its file is removed (a closed one is left to be published)
-            made = os.lstat(tmp)
-            with h5py.File(tmp, "a") as f:
-                opened = os.fstat(f.id.get_vfd_handle())
-                if (opened.st_dev, opened.st_ino) != (made.st_dev, made.st_ino) or not stat.S_ISREG(made.st_mode):
+            with h5py.File(tmp, "a") as f:   # HDF5 opens by name: the file it opened must be the one written
+                if not same_file(f.id.get_vfd_handle(), tmp):
                     raise ImportFileError(f"{tmp} was replaced while it was written; nothing was written")
                 g = f["samples"]
                 for name, values in {**samples, **{k: v for k, (v, _) in extras.items()}}.items():
