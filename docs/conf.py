@@ -52,7 +52,7 @@ nitpick_ignore_regex = [
 
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
-autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": False}
+autodoc_default_options = {"undoc-members": False, "show-inheritance": False}
 autodoc_preserve_defaults = False
 
 # The tutorial runs during the build; a failing cell fails the build, a warning it prints too.
@@ -108,17 +108,21 @@ def _scopes(module: str, cls: str) -> list[str]:
     parts = module.split(".") if module else []
     scopes = [".".join(parts[:i]) for i in range(len(parts), 0, -1)]
     if module and cls:
+        scopes.insert(0, f"{module}.{cls}")
         owner = _find(f"{module}.{cls}")
-        if owner is not None and getattr(owner, "__module__", None):
-            scopes.insert(0, owner.__module__)
+        if owner is not _MISSING and getattr(owner, "__module__", None):
+            scopes[1:1] = [f"{owner.__module__}.{owner.__qualname__}", owner.__module__]
     if len(parts) >= 2:
         room = importlib.import_module(".".join(parts[:2]))
         scopes += [f"{room.__name__}.{m.name}" for m in pkgutil.iter_modules(getattr(room, "__path__", []))]
     return [""] + scopes
 
 
+_MISSING = object()
+
+
 def _find(dotted: str):
-    """The module or object ``dotted`` names (importing what it must), or None."""
+    """The module or object ``dotted`` names (importing what it must), or ``_MISSING``."""
     parts = dotted.split(".")
     for cut in range(len(parts), 0, -1):
         try:
@@ -129,9 +133,9 @@ def _find(dotted: str):
             for name in parts[cut:]:
                 obj = getattr(obj, name)
         except AttributeError:
-            return None
+            return _MISSING
         return obj
-    return None
+    return _MISSING
 
 
 def _internal_reference(app, env, node, contnode):
@@ -143,7 +147,7 @@ def _internal_reference(app, env, node, contnode):
     target = node["reftarget"].lstrip(".~")
     for scope in _scopes(node.get("py:module") or "", node.get("py:class") or ""):
         dotted = f"{scope}.{target}" if scope else target
-        if dotted.startswith("tsa_bench") and _find(dotted) is not None:
+        if dotted.startswith("tsa_bench") and _find(dotted) is not _MISSING:
             return contnode
     return None
 
