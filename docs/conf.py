@@ -10,6 +10,7 @@ commands (sphinx-click).
 from __future__ import annotations
 
 import importlib
+import inspect
 import pkgutil
 import re
 import sys
@@ -52,7 +53,6 @@ nitpick_ignore_regex = [
 
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
-autodoc_default_options = {"undoc-members": False, "show-inheritance": False}
 autodoc_preserve_defaults = False
 
 # The tutorial runs during the build; a failing cell fails the build, a warning it prints too.
@@ -84,21 +84,7 @@ def _include_read(app, relative_path: Path, parent_docname: str, content: list[s
         content[0] = _repo_links(content[0])
 
 
-def _exists(dotted: str) -> bool:
-    """Whether ``dotted`` names a module or an object of one (importing what it must)."""
-    parts = dotted.split(".")
-    for cut in range(len(parts), 0, -1):
-        try:
-            obj = importlib.import_module(".".join(parts[:cut]))
-        except ImportError:
-            continue
-        try:
-            for name in parts[cut:]:
-                obj = getattr(obj, name)
-        except AttributeError:
-            return False
-        return True
-    return False
+_MISSING = object()
 
 
 def _scopes(module: str, cls: str) -> list[str]:
@@ -118,9 +104,6 @@ def _scopes(module: str, cls: str) -> list[str]:
     return [""] + scopes
 
 
-_MISSING = object()
-
-
 def _find(dotted: str):
     """The module or object ``dotted`` names (importing what it must), or ``_MISSING``."""
     parts = dotted.split(".")
@@ -129,13 +112,26 @@ def _find(dotted: str):
             obj = importlib.import_module(".".join(parts[:cut]))
         except ImportError:
             continue
-        try:
-            for name in parts[cut:]:
+        for name in parts[cut:]:
+            if hasattr(obj, name):
                 obj = getattr(obj, name)
-        except AttributeError:
-            return _MISSING
+            elif name == parts[-1] and _instance_attribute(obj, name):
+                return name
+            else:
+                return _MISSING
         return obj
     return _MISSING
+
+
+def _instance_attribute(cls, name: str) -> bool:
+    """Whether ``cls`` sets ``self.<name>`` in its code (an attribute of its instances)."""
+    if not isinstance(cls, type):
+        return False
+    try:
+        source = inspect.getsource(cls)
+    except (OSError, TypeError):
+        return False
+    return re.search(rf"\bself\.{re.escape(name)}\b\s*(:[^=]+)?=", source) is not None
 
 
 def _internal_reference(app, env, node, contnode):
