@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import os
 import pkgutil
 import re
 import sys
@@ -62,26 +63,50 @@ nb_execution_raise_on_error = True
 nb_output_stderr = "warn"
 nb_merge_streams = True
 
-# README sections are pages of the site (index, protocols, rig): their links into docs/ are
-# made relative to docs/; a link to a file elsewhere in the repository becomes its path as
-# code, since the site holds docs/ only.
+# The site holds docs/ only. A link that leaves docs/ (a README section, a firmware page)
+# works on a forge but not in the site: one to a README section goes to the site page that
+# shows it (index, protocols, mega, layout include the README), any other becomes the path
+# as code. Applied to the README where it is included and to every docs/ page.
+DOCS = ROOT / "docs"
+README_PAGES = {"": "index.md", "set-up": "index.md#set-up", "usage": "index.md#usage",
+                "protocols-and-bench-files": "protocols.md", "run-file": "index.md#run-file",
+                "a-real-arduino-mega": "mega.md", "layout": "layout.md"}
 _LINK = re.compile(r"\[([^\]]+)\]\(((?!https?:|mailto:|#)[^)\s]+)\)")
 
 
-def _repo_links(text: str) -> str:
+def site_links(text: str, base: Path, page: Path, src: Path = DOCS) -> str:
+    """``text``'s links (relative to folder ``base``) made right for the page ``page`` of the
+    site built from ``src``."""
     def one(m: re.Match[str]) -> str:
         label, target = m.group(1), m.group(2)
-        if target.startswith("docs/"):
-            return f"[{label}]({target[len('docs/'):]})"
-        shown = label.strip("`")
-        return f"`{target}`" if shown == target else f"{label} (`{target}`)"
+        path, _, anchor = target.partition("#")
+        where = (base / path).resolve() if path else None
+        if where is None or not where.exists() or (where.is_relative_to(src) and base.resolve() == page.parent):
+            return m.group(0)           # unchanged: the strict build checks it
+        if where.is_relative_to(src):
+            link = os.path.relpath(where, page.parent) + (f"#{anchor}" if anchor else "")
+            return f"[{label}]({link})"
+        if where == ROOT / "README.md":
+            if anchor not in README_PAGES:
+                return m.group(0)       # the strict build reports the unknown section
+            return f"[{label}]({os.path.relpath(src / README_PAGES[anchor], page.parent)})"
+        file = os.path.relpath(where, ROOT)
+        shown = file + (f"#{anchor}" if anchor else "")
+        return f"`{shown}`" if label.strip("`") in (file, shown, target) else f"{label} (`{shown}`)"
 
     return _LINK.sub(one, text)
 
 
 def _include_read(app, relative_path: Path, parent_docname: str, content: list[str]) -> None:
-    if Path(relative_path).name == "README.md":
-        content[0] = _repo_links(content[0])
+    src = Path(app.srcdir).resolve()
+    included = (src / relative_path).resolve()
+    content[0] = site_links(content[0], included.parent, src / app.env.doc2path(app.env.docname, False), src)
+
+
+def _source_read(app, docname: str, source: list[str]) -> None:
+    src = Path(app.srcdir).resolve()
+    page = src / app.env.doc2path(docname, False)
+    source[0] = site_links(source[0], page.parent, page, src)
 
 
 _MISSING = object()
@@ -157,6 +182,7 @@ def _dataclass_defaults(app, what, name, obj, options, signature, return_annotat
 
 
 def setup(app):
+    app.connect("source-read", _source_read)
     app.connect("autodoc-process-signature", _dataclass_defaults)
     app.connect("include-read", _include_read)
     app.connect("missing-reference", _internal_reference)

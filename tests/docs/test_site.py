@@ -89,7 +89,7 @@ def test_api_reference_renders_the_public_functions(site):
 def test_readme_sections_are_pages_with_working_links(site):
     text = _text(site / "index.html")
     assert "python3 -m pip install -e ." in text
-    rig = (site / "rig.html").read_text(encoding="utf-8")
+    rig = (site / "mega.html").read_text(encoding="utf-8")
     assert "dialout" in rig
     # a README link into docs/ is a link of the site; one elsewhere in the repository is its path
     assert 'href="reliability.html"' in (site / "index.html").read_text(encoding="utf-8")
@@ -101,7 +101,7 @@ def test_strict_build_refuses_broken_links_and_references(tmp_path):
     src = tmp_path / "src"
     src.mkdir()
     (src / "index.md").write_text(
-        "# Index\n\n[gone](missing-page.md), [no heading](other.md#no-such-heading)\n\n"
+        "# Index\n\n[gone](missing-page.md), [no heading](other.md#no-such-heading), [out](../no-such-file.md)\n\n"
         "{func}`tsa_bench.store.no_such_function`, {func}`tsa_bench.store.reader._one_line`\n\n"
         "```{toctree}\nother\n```\n", encoding="utf-8")
     (src / "other.md").write_text("# Other\n", encoding="utf-8")
@@ -111,6 +111,7 @@ def test_strict_build_refuses_broken_links_and_references(tmp_path):
     assert done.returncode != 0
     assert "missing-page.md" in log
     assert "no-such-heading" in log
+    assert "no-such-file.md" in log          # outside the docs, missing: reported, not made code
     assert "tsa_bench.store.no_such_function" in log
     assert "orphan" in log
     # a private helper that exists is shown as code, not reported

@@ -242,11 +242,11 @@ class BenchClient:
                 raise DeviceMismatch(
                     f"the device on {self._port_name()} refused our HELLO "
                     f"(status {msg.Status(reply.status).name}): it speaks another protocol version or "
-                    "catalogue; flash the firmware built from this checkout (make -C firmware flash)")
+                    "catalogue; flash the firmware built from this checkout (make -C firmware flash, in the source checkout: a wheel carries no firmware)")
         raise DeviceNotFound(
             f"no answer from a tsa-bench device on {self._port_name()} at {baud or getattr(self.port, 'baudrate', '?')} "
             "baud. Check: the port (is it the Arduino Mega? `python -m serial.tools.list_ports`), the baud rate "
-            "(the firmware uses 250000), and that the tsa-bench firmware is flashed (make -C firmware flash)"
+            "(the firmware uses 250000), and that the tsa-bench firmware is flashed (make -C firmware flash, in the source checkout: a wheel carries no firmware)"
             + ("" if self.boot else "; no boot announcement was seen either"))
 
     @staticmethod
@@ -256,7 +256,7 @@ class BenchClient:
                 f"device speaks protocol v{ident.protocol_version} catalogue 0x{ident.catalogue_hash:08X}, "
                 f"host speaks v{msg.PROTOCOL_VERSION} catalogue 0x{msg.CATALOGUE_HASH:08X} "
                 f"(firmware {ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}); rebuild and flash the firmware "
-                "from this checkout (make -C firmware flash) or install the matching tsa-bench")
+                "from this checkout (make -C firmware flash, in the source checkout: a wheel carries no firmware) or install the matching tsa-bench")
 
     def _next_seq(self) -> int:
         """The next sequence number (a thread sending on a byte port holds ``_io``)."""

@@ -53,6 +53,7 @@ from typing import NamedTuple, Sequence
 
 from tsa_bench.benchdata import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
+from tsa_bench.device.faults import CLEARS, RECOVERY, fault_name, latched_text
 from tsa_bench.device.keepalive import Keepalive
 from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
@@ -63,8 +64,9 @@ from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands
 from tsa_bench.rundocs import (
     EventRecord, RunConsumer, RunStart, RunStop, SegmentRecord, StorageFull,
 )
+from tsa_bench.operator import OperatorAbsent
+from tsa_bench.operator import OperatorChannel as Operator
 from tsa_bench.runner.interrupts import Interrupts
-from tsa_bench.runner.operator import Operator
 from tsa_bench.runner.pacing import Pacing
 from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
@@ -149,6 +151,7 @@ class Runner:
             self._load_g = float(resume.load_g) if resume.load_g is not None else float("nan")
         self._prompt_segment: int | None = None
         self._last_status: msg.QueueStatus | None = None
+        self._fault_at_start_ok = False   # while the set-up looks at a fault latched before the run
         self._rows: list[tuple] = []
         self.block_samples = max(1, int(block_samples))  # 1: documents handed over at every read
         # documents waiting for the rows before them: (how many of _rows came before, name, doc)
@@ -246,7 +249,7 @@ class Runner:
             except StorageFull as exc:
                 status, reason = "failed", str(exc)
                 self._safe_stop()
-            except (RunFailed, DeviceError) as exc:
+            except (RunFailed, DeviceError, OperatorAbsent) as exc:
                 status, reason = "failed", str(exc)
                 self._safe_stop()
             except Exception as exc:  # a consumer or host bug: never leave the motor or heater running
@@ -285,11 +288,15 @@ class Runner:
         return "SIGTERM" if sig == signal.SIGTERM else "Ctrl-C"
 
     def _setup(self) -> None:
+        self._fault_at_start_ok = True
         self._command(msg.Heartbeat())
         while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
             self._pump()
+        if self._last_status.fault:         # latched before this run (a host that left while it sampled)
+            self._clear_fault_at_start(self._last_status)
+        self._fault_at_start_ok = False
         try:                                # moves need a known twist zero
-            with self._attended():
+            with self.interrupts.immediate(), self._attended():   # a person may take minutes
                 settle_position(self.client, self.operator, self._last_status, self.spt, self._event)
         except PositionUnknown as exc:
             raise RunFailed(str(exc)) from None
@@ -304,6 +311,20 @@ class Runner:
                                     max(1, round(r.accel_turns_per_s2 * self.spt))), "the move to the resumed twist")
             if r.heater_V:
                 self._queued(msg.SetHeater(NO_SEGMENT, round(r.heater_V * 1000)), "the resumed heater voltage")
+
+    def _clear_fault_at_start(self, status: msg.QueueStatus) -> None:
+        """Say what is latched, then CLEAR_QUEUE; RunFailed when the fault stays."""
+        what = latched_text(status, self.ident)
+        self.operator.tell(f"tsa-bench: {what}. Clearing it now (CLEAR_QUEUE) before the run starts.")
+        self._event("fault_at_start", f"{fault_name(status.fault)} latched before the run: CLEAR_QUEUE sent")
+        self._command(msg.ClearQueue())
+        self._last_status = None
+        self._command(msg.Heartbeat())
+        while self._last_status is None:
+            self._pump()
+        if self._last_status.fault:
+            raise RunFailed(f"the device keeps fault {fault_name(self._last_status.fault)} latched after "
+                             f"CLEAR_QUEUE: its cause is still there; {RECOVERY.get(fault_name(status.fault), '')}")
 
     def _teardown(self) -> None:
         self._queued(msg.SetHeater(NO_SEGMENT, 0), "heater off")
@@ -492,8 +513,8 @@ class Runner:
                 # it answers the last heartbeat, and no command's ACK since says more
                 # (a stale count would only cost a refused, resent command)
                 self._free = m.queue_free
-            if m.fault:
-                raise RunFailed(f"device fault latched: {msg.Fault(m.fault).name.lower()}")
+            if m.fault and not self._fault_at_start_ok:
+                raise RunFailed(f"device fault latched: {fault_name(m.fault)}; {CLEARS}")
             if (not m.executing and m.queue_free == self.ident.queue_slots and self._oldest < self._next
                     and m.segment == self._last_sent_wire):
                 # idle with an empty queue after the last segment sent: whatever was sent
@@ -570,7 +591,8 @@ class Runner:
                     t_end = self._t(e.t_us)
                     self._finish_segment(idx, t_end if math.isnan(start) else float(start), t_end, True)
         elif kind == _FAULT:
-            raise RunFailed(f"device fault: {msg.Fault(e.code).name.lower()} ({self._segment_named(e.segment)})")
+            raise RunFailed(f"device fault: {fault_name(e.code)} ({self._segment_named(e.segment)}); "
+                            f"{RECOVERY.get(fault_name(e.code), '')}; {CLEARS}")
         elif kind == _QUEUE_EMPTY:
             # An underrun: the device ran dry after the last command of a burst (runner/underrun.py)
             # of a plan segment that is followed by more device work. Not one: set-up and
