@@ -1,6 +1,6 @@
 """Sphinx configuration of the tsa-bench documentation site (built from docs/).
 
-Build it with ``python3 -m sphinx -W -n -b html docs site`` (``pip install -e ".[docs]"``);
+Build it with ``python -m sphinx -W -n docs site`` (``pip install -e ".[docs]"``);
 ``tests/docs/test_site.py`` runs the same strict build in CI. Markdown pages are read by
 MyST, the tutorial notebook by MyST-NB (executed during the build), the API reference
 comes from the package's docstrings (autodoc) and the CLI reference from the click
