@@ -21,12 +21,12 @@ DOCS = ROOT / "docs"
 
 
 def _sphinx(src: Path, out: Path, *extra: str) -> subprocess.CompletedProcess[str]:
-    """``sphinx-build -W -n`` of ``src`` with docs/conf.py into ``out`` (fresh environment)."""
+    """``sphinx-build -W`` of ``src`` with docs/conf.py (nitpicky: references checked) into ``out``."""
     env = dict(os.environ)
     # the tutorial's kernel imports the package next to these docs
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "host"), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     env.pop("MPLBACKEND", None)    # the kernel's inline backend draws the tutorial's figures
-    cmd = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-n", "-E", "-q", "-b", "html", "-T",
+    cmd = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html", "-T",
            "-c", str(DOCS), "-d", str(out / "doctrees"), *extra, str(src), str(out / "html")]
     out.mkdir(parents=True, exist_ok=True)
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900, cwd=out)
