@@ -47,7 +47,7 @@ myst_enable_extensions = ["colon_fence", "deflist"]
 # whose inventories are not fetched (the build is offline), are left unresolved.
 nitpicky = True
 nitpick_ignore_regex = [
-    (r"py:.*", r"(np|numpy|h5py|serial|click|yaml|matplotlib|pyarrow|dask|scipy|pandas)(\..*)?"),
+    (r"py:.*", r"(np|numpy|h5py|serial|click|yaml|matplotlib|pyarrow|dask|scipy|pandas|bluesky|ophyd_async|event_model)(\..*)?"),
     (r"py:.*", r"(collections\.abc|typing|pathlib|dataclasses|enum|threading|io|os)\..*"),
     (r"py:.*", r"(Path|Any|Mapping|Sequence|Iterable|Iterator|Callable|NDArray|ArrayLike)"),
 ]

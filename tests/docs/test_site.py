@@ -73,7 +73,10 @@ def test_cli_reference_lists_every_command(site):
 def test_api_reference_renders_the_public_functions(site):
     objects = {
         "api/runs.html": ["tsa_bench.store.read_run", "tsa_bench.rundata.RunData"],
-        "api/running.html": ["tsa_bench.runner.Runner", "tsa_bench.device.BenchClient", "tsa_bench.bench.load_bench"],
+        "api/running.html": ["tsa_bench.runner.Runner", "tsa_bench.device.BenchClient", "tsa_bench.bench.load_bench",
+                             "tsa_bench.operator.channel.OperatorChannel", "tsa_bench.operator.terminal.TerminalOperator"],
+        "api/importing.html": ["tsa_bench.importers.import_file", "tsa_bench.importers.ImportOptions",
+                               "tsa_bench.importers.ImportFileError"],
         "api/simulating.html": ["tsa_bench.sim.simulate"],
         "api/models.html": ["tsa_bench.models.fitting.fit", "tsa_bench.models.saved.SavedModel"],
         "api/diagnose.html": ["tsa_bench.analysis.diagnose", "tsa_bench.analysis.DiagnoseResult"],
