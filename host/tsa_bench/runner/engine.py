@@ -98,8 +98,9 @@ class Runner:
 
     ``client`` must be connected (``ValueError`` otherwise); ``plan`` compiled under
     ``bench.limits``; ``consumers`` get the run documents in order (a
-    :class:`~tsa_bench.store.RunWriter` writes the file); ``operator`` answers prompts
-    (``AutoOperator`` on a simulated bench, ``ConsoleOperator`` at a real rig).
+    :class:`~tsa_bench.store.RunWriter` writes the file); ``operator`` answers prompts, an
+    :class:`~tsa_bench.operator.channel.OperatorChannel` (``AutoOperator`` on a simulated
+    bench, ``TerminalOperator`` at a real rig).
     ``backend`` ("sim", "serial", "simavr") and ``port_name`` are recorded in the run file;
     ``metadata`` adds to the protocol's; ``block_samples`` rows per
     :class:`~tsa_bench.rundocs.SampleBlock`. One Runner runs once.
