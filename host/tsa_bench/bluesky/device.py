@@ -214,7 +214,7 @@ class TsaRig(StandardReadable):
             self.resistance = self._sampled("resistance", "ohm", 5, lambda a: a.resistance_ohm)
         with self.add_children_as_readables(Format.UNCACHED_SIGNAL):
             self.step_position = self._sampled("step_position", "step", None, lambda a: a.step_position, int, 0)
-            self.device_time = self._sampled("t", "s", 6, lambda a: a.t_s)
+            self.device_time = self._sampled("device_time", "s", 6, lambda a: a.t_s)
         with self.add_children_as_readables(Format.CHILD):
             self.twist = TwistAxis(self)
             self.heater = HeaterAxis(self)

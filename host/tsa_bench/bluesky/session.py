@@ -44,8 +44,12 @@ from tsa_bench.device import DeviceError
 from tsa_bench.motion.trapezoid import TrapezoidProfile
 from tsa_bench.protocol import msg
 from tsa_bench.rig.link import RigError, RigLink, open_link
+from tsa_bench.plan import Plan
+from tsa_bench.rundocs import RunStop, SampleBlock
 from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, load_mg
+from tsa_bench.runner.engine import Runner
 from tsa_bench.runner.samples import length_mm, resistance_ohm
+from tsa_bench.units import G_N_PER_G
 
 #: Default sampling period while staged (s) and acquisition window (s): five samples a window.
 DEFAULT_PERIOD_S = 0.1
@@ -92,6 +96,21 @@ class Acquisition:
     wall_time: float
 
 
+class _LoadTracker:
+    """A run consumer remembering the load (N) of the last sample."""
+
+    load_N = math.nan
+
+    def on_start(self, start: Any) -> None: ...
+    def on_segment(self, segment: Any) -> None: ...
+    def on_event(self, event: Any) -> None: ...
+    def on_stop(self, stop: Any) -> None: ...
+
+    def on_samples(self, block: SampleBlock) -> None:
+        if len(block):
+            self.load_N = float(block.columns["load"][-1])
+
+
 def _mean(values: list[float]) -> float:
     finite = [v for v in values if v == v]
     return math.fsum(finite) / len(finite) if finite else math.nan
@@ -120,6 +139,7 @@ class RigSession:
         self._awaited: int | None = None      # the segment a job waits for
         self._done: set[int] = set()
         self._window: list[msg.Sample] | None = None
+        self._interrupts: Any = None          # the running protocol's (request() stops it)
         self._keep_alive = False
         self._thread = threading.Thread(target=self._work, name=f"tsa-bench rig {port}", daemon=True)
         self._thread.start()
@@ -221,6 +241,9 @@ class RigSession:
         the worker sends STOP (motor halted, heater off, queue cleared). The Future is
         done once STOP went out."""
         self._stop.set()
+        running = self._interrupts
+        if running is not None:
+            running.request()      # the protocol's runner STOPs at its next safe point
         return self.submit(self._send_stop)
 
     def _send_stop(self) -> None:
@@ -384,6 +407,36 @@ class RigSession:
             resistance_ohm=_mean([resistance_ohm(bench, s.resistance_raw, s.adc_flags) for s in samples]),
             turns=last.step_position / link.steps_per_turn, step_position=last.step_position,
             heater_V=_mean([s.heater_mV / 1000.0 for s in samples]), load_g=self.load_g, wall_time=time.time())
+
+    # -- a whole protocol --------------------------------------------------------
+    def run_protocol(self, plan: Plan, consumers: list, operator: Any, interrupts: Any,
+                     metadata: dict, final_load_g: float) -> RunStop:
+        """(Worker) run a compiled protocol with the project's :class:`~tsa_bench.runner.Runner`
+        on this session's client; its documents go to ``consumers``; ``interrupts.request()``
+        (:meth:`request_stop` calls it) stops it at a safe point. Afterwards the sampling the
+        rig had is restored; the declared load is the protocol's last."""
+        link = self.open_link
+        self.ensure_position()
+        tracker = _LoadTracker()
+        self._interrupts = interrupts
+        try:
+            self._check_stop()
+            runner = Runner(link.client, plan, self.bench, [*consumers, tracker], operator,
+                            backend="sim" if link.simulated else "serial", port_name=self.port,
+                            interrupts=interrupts, metadata=metadata)
+            stop = runner.run()
+        finally:
+            self._interrupts = None
+            link.client.on_wait = None
+        self.heater_V = 0.0     # the runner's teardown (or its STOP) switched the heater off
+        self.load_g = tracker.load_N / G_N_PER_G if tracker.load_N == tracker.load_N else final_load_g
+        try:
+            link.status()
+            if self.sampling_period_s:
+                self._sampling(self.sampling_period_s)
+        except (DeviceError, RigError, RigRefused):
+            pass   # the next job says what is wrong
+        return stop
 
     # -- position --------------------------------------------------------------
     def ensure_position(self) -> str | None:

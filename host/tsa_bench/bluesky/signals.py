@@ -6,8 +6,7 @@ Contract: :class:`RigBackend` is an ophyd-async soft backend whose value comes f
 async getter returning ``(value, timestamp)`` (POSIX s), called on every read (never a
 cached monitor), and whose descriptor carries units, precision and, once known, limits
 (``control`` and ``display``: the bench file's and the device's, the tighter). Its
-source is ``tsa-bench:<port>#<quantity>``: the documents bridge
-(:mod:`tsa_bench.bluesky.bridge`) knows a column by the quantity after ``#``.
+source is ``tsa-bench:<port>#<quantity>`` (:mod:`.sources`).
 :class:`SampledSignal` is a read-only signal of such a backend that is never cached:
 staging it stages the rig (sampling on) instead of starting a monitor.
 """
@@ -22,27 +21,9 @@ from typing import Any
 from bluesky.protocols import Reading
 from ophyd_async.core import AsyncStatus, SignalR, SoftSignalBackend
 
-#: The quantity names a source may end in (``#<quantity>``), with their units: the
-#: run file's sample columns (docs/run-format.md) and the rig's configuration.
-QUANTITIES: dict[str, str] = {
-    "t": "s", "turns": "turn", "length": "mm", "resistance": "ohm", "heater_voltage": "V", "load": "g",
-    "step_position": "step", "sampling_period": "s", "integration_time": "s", "velocity": "turn/s",
-    "acceleration": "turn/s^2", "turns_setpoint": "turn", "heater_setpoint": "V",
-}
+from tsa_bench.bluesky.sources import source_of
 
 Getter = Callable[[], Awaitable[tuple[Any, float]]]
-
-
-def source_of(port: str, quantity: str) -> str:
-    """``tsa-bench:<port>#<quantity>``: the source a rig's signal names in its descriptor."""
-    return f"tsa-bench:{port}#{quantity}"
-
-
-def quantity_of(source: str) -> str | None:
-    """The quantity of a tsa-bench source (None for any other source)."""
-    if not source.startswith("tsa-bench:") or "#" not in source:
-        return None
-    return source.rsplit("#", 1)[1] or None
 
 
 class RigBackend(SoftSignalBackend):
