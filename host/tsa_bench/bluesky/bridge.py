@@ -153,7 +153,9 @@ class RunFileWriter:
             run.writer.on_event(EventRecord(t_end, "bluesky_streams_left_out",
                                             "streams not stored as samples: " + ", ".join(sorted(run.left_out))))
         status = EXIT_STATUS.get(doc.get("exit_status", ""), "failed")
-        reason = doc.get("reason") or ("all points done" if status == "success" else doc.get("exit_status", ""))
+        reason = doc.get("reason") or ("the Bluesky run ended" if status == "success" else
+                                       f"the Bluesky run ended '{doc.get('exit_status', '?')}' (RunEngine abort, "
+                                       "stop or a failed plan)")
         run.writer.on_stop(RunStop(status, reason, t_end, run.rows, 0, 0, doc["time"] - run.start["time"]))
 
     # -- the file ---------------------------------------------------------------------

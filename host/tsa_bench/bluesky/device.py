@@ -54,7 +54,7 @@ from tsa_bench.bench import load_bench
 from tsa_bench.bench.ports import check_port
 from tsa_bench.benchdata import BenchConfig
 from tsa_bench.bluesky.session import (
-    DEFAULT_PERIOD_S, DEFAULT_WINDOW_S, Acquisition, RigRefused, RigSession,
+    DEFAULT_PERIOD_S, DEFAULT_WINDOW_S, Acquisition, RigRefused, RigSession, RigStopped,
 )
 from tsa_bench.bluesky.signals import RigBackend, SampledSignal, now, rig_signal
 from tsa_bench.protocol import msg
@@ -105,6 +105,7 @@ class _AxisLogic(MovableLogic[float]):
     rig: "TsaRig"
     check: Callable[[float], Any]
     go: Callable[[float], Any]
+    stopping: bool = False
 
     async def check_move(self, new_position: float) -> None:
         self.rig._require_idle()
@@ -117,9 +118,16 @@ class _AxisLogic(MovableLogic[float]):
     async def move(self, new_position: float, timeout: TimeoutCalculator) -> None:
         await self.setpoint.set(new_position)
         self.rig._invalidate()
-        await self.go(new_position)
+        self.stopping = False
+        try:
+            await self.go(new_position)
+        except RigStopped:
+            if self.stopping:   # this axis's stop(): the move ends as StandardMovable's stop asked
+                raise asyncio.CancelledError from None
+            raise               # stopped through the rig or the other axis: a failed move, said so
 
     async def stop(self) -> None:
+        self.stopping = True
         await self.rig._send_stop()
 
 
@@ -200,7 +208,8 @@ class TsaRig(StandardReadable):
                              f"integration_time_s ({integration_time_s!r}), so every acquisition holds a sample")
         self.bench = _bench_for(port, bench, allow_url)
         self.port = port   # as given: the signals' sources name it
-        self.session = RigSession(_sim_url_with_bench(port, self.bench), self.bench, boot_timeout_s=boot_timeout_s)
+        self.session = RigSession(_sim_url_with_bench(port, self.bench), self.bench, boot_timeout_s=boot_timeout_s,
+                                  label=port)
         self._staged = 0
         self._flying = False
         self._lock: asyncio.Lock | None = None

@@ -184,6 +184,16 @@ class ProtocolFlyer(Device):
         if stop.exit_status != "success":
             raise RuntimeError(f"protocol '{self.plan.name}' ended {stop.exit_status}: {stop.reason}")
 
+    @AsyncStatus.wrap
+    async def stage(self) -> None:
+        """Nothing to prepare (the protocol was checked when the flyer was made)."""
+
+    @AsyncStatus.wrap
+    async def unstage(self) -> None:
+        """A protocol still running when its plan ends (aborted, failed, stopped) is stopped."""
+        if self._job is not None and not self._job.done():
+            await self.stop()
+
     async def stop(self, success: bool = False) -> None:
         """STOP at the runner's next safe point (motor halted, heater off); the run ends "aborted"."""
         if self._interrupts is not None and self._job is not None and not self._job.done():

@@ -1,6 +1,8 @@
 """Plans for a rig: a protocol run whose samples stream into the run while it runs.
 
-Contract: :func:`run_protocol` opens a run, kicks off a
+Contract: :func:`run_protocol` stages the flyer (so whatever ends the plan early - an
+abort, a pause, an error - its unstage stops a protocol still running: STOP, heater
+off), opens a run, kicks off a
 :class:`~tsa_bench.bluesky.flyer.ProtocolFlyer`, collects what arrived every ``poll_s``
 s of wall time until the protocol ends (so live callbacks see its samples as it runs),
 collects the rest, and closes the run; a protocol that ended "aborted" or "failed"
@@ -25,6 +27,7 @@ def run_protocol(flyer: Any, *, poll_s: float = 0.5, md: dict | None = None) -> 
     plan = flyer.plan
     meta = {"plan_name": "run_protocol", "protocol": plan.name, "protocol_path": plan.path or "", **(md or {})}
 
+    @bpp.stage_decorator([flyer])   # its unstage stops a protocol the plan leaves running
     @bpp.run_decorator(md=meta)
     def inner() -> Generator[Msg, Any, Any]:
         yield from bps.kickoff(flyer, wait=True)

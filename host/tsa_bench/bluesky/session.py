@@ -122,8 +122,10 @@ class RigSession:
     ``port``: a serial device path, ``sim://...`` or any URL the port policy lets through;
     ``bench``: the bench file read and checked (its limits, calibration, timeouts)."""
 
-    def __init__(self, port: str, bench: BenchConfig, *, boot_timeout_s: float | None = None) -> None:
+    def __init__(self, port: str, bench: BenchConfig, *, boot_timeout_s: float | None = None,
+                 label: str | None = None) -> None:
         self.port = port
+        self.label = label or port     # the port as the user gave it, for messages
         self.bench = bench
         self.boot_timeout_s = boot_timeout_s
         self.link: RigLink | None = None
@@ -140,6 +142,7 @@ class RigSession:
         self._done: set[int] = set()
         self._window: list[msg.Sample] | None = None
         self._interrupts: Any = None          # the running protocol's (request() stops it)
+        self._position_checked = False        # ensure_position found the twist zero known
         self._keep_alive = False
         self._thread = threading.Thread(target=self._work, name=f"tsa-bench rig {port}", daemon=True)
         self._thread.start()
@@ -149,7 +152,7 @@ class RigSession:
         """Run ``fn(*args)`` on the worker thread after the jobs before it; its Future."""
         fut: Future = Future()
         if not self._thread.is_alive():
-            fut.set_exception(RigError(f"the session on {self.port} is closed"))
+            fut.set_exception(RigError(f"the session on {self.label} is closed"))
             return fut
         self._jobs.put((fut, fn, args))
         return fut
@@ -211,7 +214,7 @@ class RigSession:
     @property
     def open_link(self) -> RigLink:
         if self.link is None:
-            raise RigError(f"the rig on {self.port} is not connected (connect it first: "
+            raise RigError(f"the rig on {self.label} is not connected (connect it first: "
                            "`with init_devices(): rig = TsaRig(...)`, or `await rig.connect()`)")
         return self.link
 
@@ -266,6 +269,7 @@ class RigSession:
             self._check_stop()
             return body()
         except RigStopped:
+            link.client.on_wait = None   # the STOP's own ACK wait must not be broken by the request
             link.stop()
             self.stopped = True
             self.heater_V = 0.0
@@ -304,7 +308,7 @@ class RigSession:
                 raise RigFault(f"{what}: device fault {msg.Fault(link.fault).name.lower()} "
                                "(the device stopped the motor and the heater)")
             if time.monotonic() > deadline:
-                raise RigError(f"{what}: the device on {self.port} did not finish within "
+                raise RigError(f"{what}: the device on {self.label} did not finish within "
                                f"{expected_s * 2 + WAIT_MARGIN_S:g} s")
 
     def check_twist(self, turns: float, rate: float, accel: float) -> None:
@@ -338,6 +342,8 @@ class RigSession:
         """(Worker) twist to ``turns`` and wait for the move to end; the twist reached (turns)."""
         def body() -> float:
             self.check_twist(turns, rate, accel)
+            if not self._position_checked:
+                self.ensure_position()
             spt = self.open_link.steps_per_turn
             self.stopped = False
             distance = turns - self.position_steps / spt
@@ -422,7 +428,7 @@ class RigSession:
         try:
             self._check_stop()
             runner = Runner(link.client, plan, self.bench, [*consumers, tracker], operator,
-                            backend="sim" if link.simulated else "serial", port_name=self.port,
+                            backend="sim" if link.simulated else "serial", port_name=self.label,
                             interrupts=interrupts, metadata=metadata)
             stop = runner.run()
         finally:
@@ -447,18 +453,20 @@ class RigSession:
         status = link.status()
         self.position_steps = status.step_position
         if status.fault:
-            raise RigFault(f"the device on {self.port} has a fault latched "
+            raise RigFault(f"the device on {self.label} has a fault latched "
                            f"({msg.Fault(status.fault).name.lower()}): see what tripped it, then clear it "
                            "(rig.clear_fault() or `tsa-bench zero`); nothing moved")
         if not status.state & msg.DeviceState.POSITION_UNKNOWN:
+            self._position_checked = True
             return None
         if not link.simulated:
             raise PositionUnknown(
-                f"the device on {self.port} does not know the motor's twist (it powered up, reset while moving, "
+                f"the device on {self.label} does not know the motor's twist (it powered up, reset while moving, "
                 "or released the motor). Hang the TSA untwisted and declare the zero from Python with "
                 "`rig.declare_twist(0)` (or `tsa-bench zero`), or `rig.declare_twist(N)` when you know it "
                 "holds N turns; then stage again. Nothing moved.")
         self.declare_twist(0.0)
+        self._position_checked = True
         return "the simulated device did not know its position: its untwisted start is the twist zero"
 
     def declare_twist(self, turns: float) -> None:
