@@ -14,7 +14,7 @@ from bluesky.utils import FailedStatus
 from tests.bluesky.helpers import connect, make_re
 from tsa_bench.bluesky import ProtocolFlyer, run_protocol
 from tsa_bench.bluesky.flyer import ProtocolRejected
-from tsa_bench.bluesky.operator import OperatorAbsent
+from tsa_bench.operator.channel import OperatorAbsent
 from tsa_bench.rig.link import RigLink
 
 LONG = """\

@@ -20,7 +20,7 @@ protocol runs (:func:`tsa_bench.bluesky.plans.run_protocol`) or once at the end
 protocol half-way), make the runner send STOP at its next safe point: motor halted,
 heater off, the run ends "aborted". Prompts in the protocol ("hang 200 g") are answered
 at once on a simulated rig; on a real one they stop the run with
-:class:`~tsa_bench.bluesky.operator.OperatorAbsent` unless an ``operator`` is given.
+:class:`~tsa_bench.operator.channel.OperatorAbsent` unless an ``operator`` is given.
 The configuration (``read_configuration``) holds the protocol and bench texts, so a
 run file written from the documents (:mod:`tsa_bench.bluesky.bridge`) holds them too.
 """
@@ -42,12 +42,13 @@ from ophyd_async.core import AsyncStatus, Device
 from tsa_bench.bluesky.operator import OperatorRefusal
 from tsa_bench.bluesky.session import RigRefused
 from tsa_bench.bluesky.sources import source_of
+from tsa_bench.operator.channel import AutoOperator
+from tsa_bench.operator.channel import OperatorChannel as Operator
 from tsa_bench.plan import Plan, PlanErrors, Prompt, load_plan
 from tsa_bench.rundocs import SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.runner.checks import PlanRejected, check_plan_against_device
 from tsa_bench.runner.commands import plan_problems
 from tsa_bench.runner.interrupts import Interrupts
-from tsa_bench.runner.operator import AutoOperator, Operator
 from tsa_bench.runner.tracking import bench_problems
 from tsa_bench.shipped import find_config
 

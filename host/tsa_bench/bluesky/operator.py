@@ -2,7 +2,7 @@
 
 Contract: :class:`OperatorRefusal` is the operator a protocol flyer on a real rig gets
 when no other is given. It answers no prompt and no question: each raises
-:class:`OperatorAbsent` whose message holds the prompt's text whole and says how to run
+:class:`~tsa_bench.operator.channel.OperatorAbsent` whose message holds the prompt's text whole and says how to run
 it instead, and the runner then ends the protocol "failed" after STOP (motor halted,
 heater off). A plan that needs a person answers through its own operator object (any
 object with ``answer(text, load_g)`` and ``confirm(question)``), passed to the flyer.
@@ -10,9 +10,7 @@ object with ``answer(text, load_g)`` and ``confirm(question)``), passed to the f
 
 from __future__ import annotations
 
-
-class OperatorAbsent(RuntimeError):
-    """A question reached a plan that has nobody to ask; the message holds it whole."""
+from tsa_bench.operator.channel import OperatorAbsent
 
 
 class OperatorRefusal:

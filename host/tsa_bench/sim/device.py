@@ -67,6 +67,10 @@ implements it:
   (step underruns, UART, I2C), ``max_pass_us`` and ``sensor_restarts`` stay 0: the
   simulation has no such hardware; ``sensor_period_ns`` is the simulated ADS1115's
   conversion period (1/860 s) while sampling continuously, else 0.
+* ``simulated=False`` (a rehearsal device, ``tsa-bench sim-serve --as-hardware``): IDENTITY
+  without the SIMULATED flag and SIM_SET_LOAD answered ``unknown_message``, as the
+  firmware; the load changes only through :meth:`SimDevice.set_load_g` (a person's hand).
+  :meth:`SimDevice.after_reset` is the device after a DTR reset.
 * Undecodable frames are dropped and counted (:attr:`frame_errors`); a valid frame
   with an id this device does not accept gets ``unknown_message``, a wrong payload
   length ``bad_length``.
@@ -115,10 +119,11 @@ class SimDevice:
     """A simulated tsa-bench device (see module docstring)."""
 
     def __init__(self, bench: BenchConfig, plant: Plant | None = None, seed: int | None = None, *,
-                 frames: bool = False) -> None:
+                 frames: bool = False, simulated: bool = True) -> None:
         self.bench = bench
         self.limits: DeviceLimits = device_limits(bench)
-        self.identity = identity_message(self.limits)
+        self.simulated = simulated       # False: passes for hardware (no SIMULATED flag, no SIM_SET_LOAD)
+        self.identity = identity_message(self.limits, simulated)
         self.plant: Plant = plant if plant is not None else plant_from_config(bench.plant, seed)
         self.sensors = SimSensors(bench.position, bench.resistance)
         self.resistance_timing = ResistanceTiming()
@@ -201,11 +206,26 @@ class SimDevice:
         """Change the hanging load, as an operator would (same as SIM_SET_LOAD)."""
         self.plant.set_load(load_g)
 
-    def boot(self) -> None:
-        """Announce the start: queue BOOT (reason POWER_ON: a fresh device, position unknown),
-        after a lone delimiter, as the firmware does (it ends a frame a reset cut short)."""
+    def boot(self, reason: msg.BootReason = msg.BootReason.POWER_ON) -> None:
+        """Announce the start: queue BOOT (default reason POWER_ON: a fresh device, position
+        unknown), after a lone delimiter, as the firmware does (it ends a frame a reset cut short)."""
         self._put_bytes(b"\x00")
-        self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(msg.BootReason.POWER_ON)))
+        self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(reason)))
+
+    def after_reset(self) -> SimDevice:
+        """A new device as this one comes out of an external reset (a Mega's DTR pulse when
+        its port opens): the same plant (the TSA hangs as it hung), fault, queue, heater and
+        sampling gone; the motor where it stood, its position kept only when it was known,
+        at rest and the motor held (firmware/README.md, "The twist zero across resets").
+        BOOT (reason external_reset) is queued."""
+        ex = self.executor
+        position, moving = ex.position_at(self.now_s)
+        fresh = SimDevice(self.bench, self.plant, frames=self._frames is not None, simulated=self.simulated)
+        fresh.executor.set_position(position)
+        fresh.position_known = (self.position_known and not moving and not ex.stopping
+                                and not self.motor_released)
+        fresh.boot(msg.BootReason.EXTERNAL_RESET)
+        return fresh
 
     def receive(self, data: bytes) -> None:
         """Handle bytes from the host at the current virtual time; replies are queued."""
@@ -408,7 +428,7 @@ class SimDevice:
     # -- input ------------------------------------------------------------
     def _handle(self, raw: RawFrame, message: NamedTuple | None = None) -> None:
         spec = msg.MESSAGES.get(raw.msg_id)
-        if spec is None or spec.direction != "host":
+        if spec is None or spec.direction != "host" or (spec.cls is msg.SimSetLoad and not self.simulated):
             self._answer(raw, _S.UNKNOWN_MESSAGE)
             return
         if message is None:
