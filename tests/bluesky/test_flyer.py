@@ -14,7 +14,6 @@ from bluesky.utils import FailedStatus
 from tests.bluesky.helpers import connect, make_re
 from tsa_bench.bluesky import ProtocolFlyer, run_protocol
 from tsa_bench.bluesky.flyer import ProtocolRejected
-from tsa_bench.operator.channel import OperatorAbsent
 from tsa_bench.rig.link import RigLink
 
 LONG = """\
@@ -135,5 +134,5 @@ def test_a_prompt_on_a_real_rig_stops_the_protocol_and_says_what_it_asked(sessio
         re(run_protocol(ProtocolFlyer(rig, path, name="p")))
     text = str(err.value.__cause__)
     assert "ended failed" in text and "'Hang [200 g] now'" in text and "tsa-bench run" in text
-    assert OperatorAbsent.__name__ in text
+    assert "a Bluesky plan asks nobody at a terminal" in text   # OperatorRefusal said why
     assert rec.of("stop")[0]["exit_status"] == "fail"

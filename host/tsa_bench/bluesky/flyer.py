@@ -27,6 +27,7 @@ run file written from the documents (:mod:`tsa_bench.bluesky.bridge`) holds them
 
 from __future__ import annotations
 
+import asyncio
 import json
 import threading
 import time
@@ -153,7 +154,8 @@ class ProtocolFlyer(Device):
     # -- Flyable -----------------------------------------------------------------
     @AsyncStatus.wrap
     async def kickoff(self) -> None:
-        """Check the protocol against the connected device and start it on the rig."""
+        """Check the protocol against the connected device and start it on the rig; done
+        once the runner has started it (its run start emitted)."""
         rig = self._rig
         rig._require_idle()
         session = rig.session
@@ -167,14 +169,20 @@ class ProtocolFlyer(Device):
         self._collector, self._interrupts = _Collector(), _RemoteInterrupts()
         rig._flying = True
         rig._invalidate()
-        self._job = session.submit(session.run_protocol, self.plan, [self._collector], operator, self._interrupts,
-                                   self._metadata, _final_load_g(self.plan))
+        col = self._collector
+        self._job = job = session.submit(session.run_protocol, self.plan, [col], operator, self._interrupts,
+                                         self._metadata, _final_load_g(self.plan))
+        # started means the runner holds the device: a stop from here on ends the run "aborted"
+        # through its safe points (before that, the session's STOP alone would end it)
+        while col.start is None and not job.done():
+            await asyncio.sleep(0.01)
+        if col.start is None:
+            rig._flying = False
+            job.result()   # it ended before starting (position unknown, a fault, a stop): say why
 
     @AsyncStatus.wrap
     async def complete(self) -> None:
         """Wait for the protocol to end; fail with the runner's reason unless it succeeded."""
-        import asyncio
-
         if self._job is None:
             raise RigRefused(f"{self.name}: complete() before kickoff()")
         try:
