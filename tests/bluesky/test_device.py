@@ -153,3 +153,14 @@ def test_the_rig_refuses_a_port_the_policy_does_not_allow():
 
     with pytest.raises(PortPolicyError, match="only serial device paths"):
         connect("spy:///dev/ttyACM0")
+
+
+def test_a_long_move_with_sampling_off_keeps_the_device_watchdog_fed(session):
+    """60 s of motion with nothing coming back from the device: the link heartbeats on the
+    simulated device's own clock, so its watchdog never trips mid-move."""
+    re, rec, rig = session
+    re(bps.mv(rig.twist, 60))
+    re(bp.count([rig.length], 1))
+    assert rig.session.link.fault == 0
+    assert rec.events()[-1]["data"]["rig-length"] < 200       # 60 turns shorten the TSA a lot (mm)
+    assert rig.session.position_steps == 60 * rig.session.link.steps_per_turn
