@@ -1,0 +1,80 @@
+"""The rig device on devices in another process, opened by path like a Mega's serial
+port: `tsa-bench sim-serve` and the firmware core built natively, behind a pty. The same
+device client as every other command (the relay in front of the firmware records what
+went down the line)."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import bluesky.plans as bp
+import pytest
+from bluesky.utils import FailedStatus
+
+from tests.bluesky.helpers import ROOT, build_native, connect, make_re, native_relay, quick_bench
+from tests.rig.native_pty import NativeFirmwarePty
+from tsa_bench.bluesky import PositionUnknown
+from tsa_bench.protocol import msg
+
+
+def test_count_and_scan_on_the_native_firmware(tmp_path):
+    with native_relay("--virtual") as relay:
+        re, rec = make_re()
+        rig = connect(relay.path, quick_bench(tmp_path, "arduino-mega.yaml"))
+        try:
+            re(bp.count([rig.length, rig.resistance], 3))
+            re(bp.scan([rig.length, rig.resistance], rig.twist, 0, 8, 3))
+        finally:
+            rig.close()
+        events = rec.events()
+        assert len(events) == 6
+        assert all(150 < e["data"]["rig-length"] < 375 for e in events)           # the sensor's span (mm)
+        assert all(math.isfinite(e["data"]["rig-resistance"]) for e in events)    # heater off: measured
+        assert [e["data"]["rig-twist"] for e in events[3:]] == pytest.approx([0, 4, 8], abs=1e-3)
+        # what went down the line: the device client's own commands, a move per scan point
+        assert relay.link.host_frames.count(msg.MoveTo) == 3
+        assert relay.link.host_frames.count(msg.Dwell) == 6                        # one acquisition per event
+
+
+def test_count_on_sim_serve(tmp_path):
+    bench = quick_bench(tmp_path, "sim.yaml")
+    server = subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", "sim-serve", "--bench", str(bench)],
+                              cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        path = server.stdout.readline().strip()
+        assert path.startswith("/dev/"), server.stderr.read()
+        re, rec = make_re()
+        rig = connect(path, bench)
+        try:
+            re(bp.count([rig.length, rig.resistance], 3))
+            assert rig.session.link.simulated
+        finally:
+            rig.close()
+    finally:
+        server.terminate()
+        server.wait(10)
+    events = rec.events()
+    assert len(events) == 3 and all(150 < e["data"]["rig-length"] < 375 for e in events)
+    assert rec.of("descriptor")[0]["data_keys"]["rig-resistance"]["units"] == "ohm"
+
+
+def test_firmware_passing_for_a_mega_that_lost_its_zero_refuses_to_stage(tmp_path):
+    """No SIMULATED flag, position unknown at power-up: staging fails with what to do,
+    nothing moves, and declare_twist() answers the question."""
+    with NativeFirmwarePty(build_native(), "--virtual", as_hardware=True) as fw:
+        re, rec = make_re()
+        rig = connect(fw.path, quick_bench(tmp_path, "arduino-mega.yaml"))
+        try:
+            assert not rig.session.link.simulated
+            with pytest.raises(FailedStatus) as refused:
+                re(bp.scan([rig.length], rig.twist, 0, 4, 2))
+            assert isinstance(refused.value.__cause__, PositionUnknown)
+            assert "rig.declare_twist(0)" in str(refused.value.__cause__)
+            assert rec.events() == [] and rig.session.position_steps == 0
+            rig.declare_twist(0)
+            re(bp.scan([rig.length], rig.twist, 0, 4, 2))
+            assert [e["data"]["rig-twist"] for e in rec.events()] == pytest.approx([0, 4], abs=1e-3)
+        finally:
+            rig.close()
