@@ -59,6 +59,20 @@ def connect(port: str, bench: str | Path | None = None, **kw) -> TsaRig:
     return rig
 
 
+def record_commands(rig: TsaRig, monkeypatch) -> list[str]:
+    """The type names of every command the rig's device client sends from now on, in order."""
+    sent: list[str] = []
+    client = rig.session.link.client
+    original = client.command
+
+    def command(message, *, check=True):
+        sent.append(type(message).__name__)
+        return original(message, check=check)
+
+    monkeypatch.setattr(client, "command", command)
+    return sent
+
+
 def fsum_mean(values) -> float:
     """The mean of the finite values (NaN when none): the reduction a reading reports."""
     finite = [float(v) for v in values if v == v]

@@ -9,7 +9,7 @@ import bluesky.plans as bp
 import pytest
 from bluesky.utils import FailedStatus
 
-from tests.bluesky.helpers import connect, make_re
+from tests.bluesky.helpers import connect, make_re, record_commands
 from tsa_bench.bluesky import PositionUnknown, RigRefused
 from tsa_bench.protocol import msg
 from tsa_bench.rig.link import RigLink
@@ -22,20 +22,6 @@ def session():
     rig = connect("sim://?seed=3")
     yield re, rec, rig
     rig.close()
-
-
-def _sent(rig, monkeypatch) -> list:
-    """Every command the rig's client sends from now on (type names), in order."""
-    sent: list = []
-    client = rig.session.link.client
-    original = client.command
-
-    def command(message, *, check=True):
-        sent.append(type(message).__name__)
-        return original(message, check=check)
-
-    monkeypatch.setattr(client, "command", command)
-    return sent
 
 
 def test_count_takes_ten_acquisitions_with_units_in_the_descriptor(session):
@@ -85,7 +71,7 @@ def test_list_scan_over_heater_voltages_reads_resistance_as_nan_while_heating(se
 
 def test_moves_beyond_the_bench_limits_are_refused_before_anything_is_sent(session, monkeypatch):
     re, _, rig = session
-    sent = _sent(rig, monkeypatch)
+    sent = record_commands(rig, monkeypatch)
     with pytest.raises(FailedStatus) as twist:
         re(bps.mv(rig.twist, 101))
     assert "outside the limits -10..100 turns" in str(twist.value.__cause__ or twist.value)

@@ -33,9 +33,11 @@ def test_count_and_scan_on_the_native_firmware(tmp_path):
         assert all(150 < e["data"]["rig-length"] < 375 for e in events)           # the sensor's span (mm)
         assert all(math.isfinite(e["data"]["rig-resistance"]) for e in events)    # heater off: measured
         assert [e["data"]["rig-twist"] for e in events[3:]] == pytest.approx([0, 4, 8], abs=1e-3)
-        # what went down the line: the device client's own commands, a move per scan point
-        assert relay.link.host_frames.count(msg.MoveTo) == 3
-        assert relay.link.host_frames.count(msg.Dwell) == 6                        # one acquisition per event
+        # what went down the line (a retransmission repeats a frame: count segments): the device
+        # client's own commands, a move per scan point, an acquisition (DWELL) per event
+        sent = relay.link.host_frames.messages
+        assert len({m.segment for m in sent if isinstance(m, msg.MoveTo)}) == 3
+        assert len({m.segment for m in sent if isinstance(m, msg.Dwell)}) == 6
 
 
 def test_count_on_sim_serve(tmp_path):

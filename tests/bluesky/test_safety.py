@@ -12,25 +12,11 @@ import bluesky.plan_stubs as bps
 import bluesky.preprocessors as bpp
 import pytest
 
-from tests.bluesky.helpers import connect, make_re, native_relay, quick_bench
+from tests.bluesky.helpers import connect, make_re, native_relay, quick_bench, record_commands
 from tsa_bench.protocol import msg
 
 TARGET_TURNS = 60.0   # 60 s of motion at the default 1 turn/s: long enough to be interrupted mid-way
 HEATER_V = 4.0
-
-
-def _record_commands(rig, monkeypatch) -> list[str]:
-    """The type names of every command the rig's client sends from now on, in order."""
-    sent: list[str] = []
-    client = rig.session.link.client
-    original = client.command
-
-    def command(message, *, check=True):
-        sent.append(type(message).__name__)
-        return original(message, check=check)
-
-    monkeypatch.setattr(client, "command", command)
-    return sent
 
 
 def _heat_then_twist(rig):
@@ -83,7 +69,7 @@ def test_an_interrupted_plan_stops_the_motor_and_switches_the_heater_off(how, mo
     re, rec = make_re()
     rig = connect("sim://?seed=4&speed=5")     # 60 turns take 12 s of wall time at most
     try:
-        sent = _record_commands(rig, monkeypatch)
+        sent = record_commands(rig, monkeypatch)
         _run_interrupted(re, rig, how, sent)
         assert "Stop" in sent[sent.index("MoveTo"):]
         after, still = _at_rest(rig)
