@@ -9,7 +9,7 @@ import bluesky.plan_stubs as bps
 import bluesky.plans as bp
 import bluesky.preprocessors as bpp
 import pytest
-from bluesky.utils import FailedStatus
+from bluesky.utils import FailedStatus, RunEngineInterrupted
 
 from tests.bluesky.helpers import connect, make_re
 from tsa_bench.bluesky import ProtocolFlyer, run_protocol
@@ -95,8 +95,10 @@ def test_the_rig_refuses_moves_and_readings_while_a_protocol_runs(session, tmp_p
     assert flyer._job.result(timeout=60).exit_status == "aborted"
 
 
-def test_an_abort_mid_protocol_stops_it(tmp_path):
-    """RE.abort() while run_protocol waits: the protocol gets STOP and ends aborted, early."""
+@pytest.mark.parametrize("how", ["abort", "pause"])
+def test_an_abort_or_a_pause_mid_protocol_stops_it(tmp_path, how):
+    """RE.abort() or RE.request_pause() while run_protocol waits: the protocol gets STOP and
+    ends aborted, early (a protocol cannot wait half-way for a resume)."""
     re, rec = make_re()
     rig = connect("sim://?seed=5&speed=50")      # the 600 s hold takes 12 s of wall time
     try:
@@ -109,15 +111,25 @@ def test_an_abort_mid_protocol_stops_it(tmp_path):
             while time.monotonic() < deadline:
                 col = flyer._collector
                 if col is not None and any(len(b) and b.columns["turns"][-1] == 10 for b in list(col.blocks)):
-                    re.abort("test: abort mid-protocol")
+                    if how == "abort":
+                        re.abort("test: abort mid-protocol")
+                    else:
+                        re.request_pause(defer=False)
                     return
                 time.sleep(0.01)
 
         threading.Thread(target=abort_when_holding, daemon=True).start()
-        with pytest.raises(Exception):
-            re(run_protocol(flyer, poll_s=5.0))   # polls rarely: the abort lands while it waits
+        if how == "abort":
+            with pytest.raises(Exception):
+                re(run_protocol(flyer, poll_s=5.0))   # polls rarely: the abort lands while it waits
+        else:
+            with pytest.raises(RunEngineInterrupted):
+                re(run_protocol(flyer, poll_s=5.0))
+            assert re.state == "paused"
         stop = flyer._job.result(timeout=60)
         assert stop.exit_status == "aborted" and stop.t_end < 300
+        if how == "pause":
+            re.abort("test: done")
         assert rec.of("stop")[0]["exit_status"] == "abort"
     finally:
         rig.close()
