@@ -9,19 +9,10 @@ import bluesky.plans as bp
 import pytest
 from bluesky.utils import FailedStatus
 
-from tests.bluesky.helpers import connect, make_re, record_commands
+from tests.bluesky.helpers import connect, record_commands
 from tsa_bench.bluesky import PositionUnknown, RigRefused
 from tsa_bench.protocol import msg
 from tsa_bench.rig.link import RigLink
-
-
-@pytest.fixture
-def session():
-    """(RunEngine, its documents, a rig on sim://): the RunEngine first, its loop runs the device."""
-    re, rec = make_re()
-    rig = connect("sim://?seed=3")
-    yield re, rec, rig
-    rig.close()
 
 
 def test_count_takes_ten_acquisitions_with_units_in_the_descriptor(session):

@@ -28,14 +28,6 @@ steps:
 """
 
 
-@pytest.fixture
-def session():
-    re, rec = make_re()
-    rig = connect("sim://?seed=5")
-    yield re, rec, rig
-    rig.close()
-
-
 def test_a_thesis_protocol_runs_as_one_plan_step_and_streams_its_samples(session):
     re, rec, rig = session
     flyer = ProtocolFlyer(rig, "twist-sweep-4ply.yaml", name="sweep")
