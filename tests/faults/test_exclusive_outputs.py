@@ -49,6 +49,7 @@ FILE_OUTPUTS = {
     "predict": (["predict", "{model}", "{run}", "--write-prediction", "{out}"], "p.h5"),
     "diagnose --json": (["diagnose", "{run}", "--out", "{fresh}", "--json", "{out}", "-q", "--max-causes", "0"],
                         "d.json"),
+    "export --documents": (["export", "{run}", "--documents", "--output", "{out}"], "d.jsonl"),
 }
 
 
