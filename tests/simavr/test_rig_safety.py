@@ -153,7 +153,9 @@ def test_the_heater_applies_the_voltage_it_reports(firmware_dir):
         reported = []
         for i, mV in enumerate(requests):
             ex.send(msg.SetHeater(2 + 2 * i, mV))
-            ex.wait_device_s(0.3)
+            # 0.6 s of device time from the ACK on: the stretch's mean duty settles (the firmware
+            # dithers from period to period); a send no longer waits for a quiet window after it
+            ex.wait_device_s(0.6)
             reported.append(ex.samples[-1].heater_mV)
             ex.send(msg.SetHeater(3 + 2 * i, 0))
             ex.wait_device_s(0.1)
