@@ -46,6 +46,19 @@ def _protocol_path(run_file: str) -> str:
     return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
 
 
+def _stored_variables(run) -> dict | None:
+    """The protocol variables the run was given (``run --set``), kept in its metadata."""
+    import json
+
+    meta = run.attrs.get("metadata")
+    try:
+        meta = json.loads(meta) if isinstance(meta, (str, bytes)) else meta
+    except ValueError:
+        return None
+    found = meta.get("protocol_variables") if isinstance(meta, dict) else None
+    return found if isinstance(found, dict) else None
+
+
 def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, allow_url: bool,
                    trust_firmware_dir: bool):
     """(bench, plan, ResumePoint, bench file path) for resuming ``resume_file``."""
@@ -82,7 +95,7 @@ def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, a
         if ":" in first:
             source = first.rsplit(":", 1)[0]
     try:
-        plan = load_plan_text(run.protocol_text, bench.limits, source)
+        plan = load_plan_text(run.protocol_text, bench.limits, source, _stored_variables(run))
     except PlanErrors as exc:
         fail(f"the protocol stored in {resume_file} does not compile on bench '{bench.name}':\n{exc}")
     problems = plan_problems(plan, bench.steps_per_turn)
