@@ -12,7 +12,8 @@ Contract:
   lock taken first, so two writers wait in turn instead of failing on a lock upgrade).
   PostgreSQL: one transaction per write. Both: a write that meets a lock, a busy database
   or a dropped connection is retried with a growing pause until ``retry_s`` (default 60 s)
-  has passed; only then does it raise :class:`CatalogueError`. A row is written whole or
+  has passed (opening: 3 s, so an absent server is said at once); only then does it
+  raise :class:`CatalogueError`. A row is written whole or
   not at all.
 * Readers never block writers (SQLite WAL; PostgreSQL MVCC).
 """
@@ -42,6 +43,8 @@ CATALOGUE_FILE = "catalogue.sqlite"
 ENV_VAR = "TSA_BENCH_CATALOGUE"
 BUSY_TIMEOUT_S = 30.0
 RETRY_S = 60.0
+#: Opening retries only this long (s): a server that is not there is said at once.
+OPEN_RETRY_S = 3.0
 
 T = TypeVar("T")
 
@@ -130,12 +133,12 @@ class Catalogue:
                                  "for PostgreSQL: pip install 'tsa-bench[postgres]'") from None
         except ArgumentError as exc:
             raise CatalogueError(f"catalogue {url!r} is not a database URL: {exc}") from None
-        self._write(self._create)
+        self._write(self._create, retry_s=min(OPEN_RETRY_S, retry_s))
 
     # -- plumbing ------------------------------------------------------------
-    def _write(self, work: Callable[[Any], T]) -> T:
+    def _write(self, work: Callable[[Any], T], retry_s: float | None = None) -> T:
         """``work(connection)`` in one write transaction, retried on locks and lost connections."""
-        deadline = time.monotonic() + self.retry_s
+        deadline = time.monotonic() + (self.retry_s if retry_s is None else retry_s)
         pause = 0.005
         while True:
             try:

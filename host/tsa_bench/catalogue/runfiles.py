@@ -23,6 +23,7 @@ import hashlib
 import json
 import os
 import signal
+import threading
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -201,7 +202,10 @@ class BoundedReader:
     def _start(self) -> None:
         import multiprocessing
 
-        ctx = multiprocessing.get_context("fork" if hasattr(os, "fork") else "spawn")
+        # fork is quick; with other threads running one may hold h5py's lock at the fork, so
+        # then a fresh interpreter (as tsa_bench.store.probe does)
+        fork = hasattr(os, "fork") and threading.active_count() == 1
+        ctx = multiprocessing.get_context("fork" if fork else "spawn")
         parent, child = ctx.Pipe()
         self._proc = ctx.Process(target=_child_loop, args=(child, self.with_hash), daemon=True)
         self._proc.start()

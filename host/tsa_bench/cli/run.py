@@ -176,7 +176,10 @@ def _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, met
                  "variables stored in RUN.h5)")
         from tsa_bench.cli.resume import prepare_resume
 
-        bench, plan, resume, bench_file = prepare_resume(resume_file, bench_path, port, allow_url, trust_firmware_dir)
+        bench, plan, resume, bench_file, variables = prepare_resume(resume_file, bench_path, port, allow_url,
+                                                                    trust_firmware_dir)
+        if variables:
+            meta["protocol_variables"] = variables   # the continuation compiles as the run it continues
     else:
         if protocol is None:
             fail("missing PROTOCOL (a protocol YAML file), or --resume RUN.h5")
@@ -332,10 +335,6 @@ def _execute_run(session: dict, interrupts) -> int:
             note = link_continuation(resume.source, path)
             if note:
                 click.echo(f"warning: {note}", err=True)
-    if registry is not None:
-        if resume is not None:
-            registry.refresh(resume.source)   # its file now names this continuation
-        registry.close()
     rtf = stop.t_end / stop.wall_time_s if stop.wall_time_s > 0 else float("inf")
     click.echo(f"wall time    {stop.wall_time_s:.2f} s (real-time factor {rtf:.0f})")
     if stop.exit_status != "success" or (writer is not None and writer.full):
@@ -345,6 +344,11 @@ def _execute_run(session: dict, interrupts) -> int:
         if status != "success":
             click.echo(f"  to continue it later: tsa-bench run --resume {path}", err=True)
     click.echo(f"wrote {path}" if path.exists() else f"no run file was written ({path})")
+    sys.stdout.flush()
+    if registry is not None:   # last: the outcome is on the screen while the catalogue is written
+        if resume is not None:
+            registry.refresh(resume.source)   # its file now names this continuation
+        registry.close()
     if writer is not None and writer.full and stop.exit_status == "success":
         return EXIT_FAILED
     return {"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED)

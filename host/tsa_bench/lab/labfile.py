@@ -107,8 +107,10 @@ class _Checker:
             for v, item in zip(node.value, value):
                 self._walk(v, item)
 
-    def add(self, node: Node | None, message: str) -> None:
+    def add(self, node: Node | None, message: str, details: list[str] = ()) -> None:
+        """A problem at ``node``; ``details`` (lines of another file's errors) follow it, indented."""
         self.problems.append(str(self.doc.error(node, message)))
+        self.problems += [f"  {line}" for line in details]
 
     def mapping(self, node: Node, keys: tuple[str, ...], what: str) -> dict[str, Node]:
         if not isinstance(node, MappingNode):
@@ -193,7 +195,7 @@ class _Checker:
         try:
             bench = load_bench(bench_file, allow_url=self.allow_url, trust_firmware_dir=self.trust_firmware_dir)
         except BenchConfigError as exc:
-            self.add(keys["bench"], f"{label}: the bench file is not usable:\n  {exc}")
+            self.add(keys["bench"], f"{label}: the bench file is not usable:", str(exc).splitlines())
             return None
         backend = "serial" if port is not None and not sim_port else bench.backend
         if sim_port and bench.backend != "sim":
@@ -212,13 +214,12 @@ class _Checker:
         try:
             plan = load_plan(protocol_file, bench.limits, variables)
         except PlanErrors as exc:
-            self.add(keys["protocol"], f"{label}: the protocol is not valid on bench '{bench.name}':\n  "
-                     + str(exc).replace("\n", "\n  "))
+            self.add(keys["protocol"], f"{label}: the protocol is not valid on bench '{bench.name}':",
+                     str(exc).splitlines())
             return None
         problems = plan_problems(plan, bench.steps_per_turn) + bench_problems(plan, bench.name)
         if problems:
-            self.add(keys["protocol"], f"{label}: {protocol_file} cannot be sent to bench '{bench.name}':\n  "
-                     + "\n  ".join(problems))
+            self.add(keys["protocol"], f"{label}: {protocol_file} cannot be sent to bench '{bench.name}':", problems)
         if len(self.problems) > n0:
             return None
         return Rig(name=name, protocol=protocol_file, bench=bench_file,
