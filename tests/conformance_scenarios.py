@@ -141,8 +141,10 @@ def every_command_and_refusal(ex: Exchange) -> list:
     log.append(ex.send(raw=encode_raw(0x10, 6, b"\x01\x02\x03")))             # bad length
     log.append(ex.send(msg.Heartbeat()))                                      # state: position unknown
     log.append(ex.send(msg.MoveTo(1, 1000, 1000, 1000)))                      # refused: position unknown
+    log.append(ex.send(msg.ArmReset()))                                       # refused: position unknown
     log.append(ex.send(msg.SetPosition(10_000_000)))                          # beyond the twist limits
     log.append(ex.send(msg.SetPosition(0)))                                   # the twist zero
+    log.append(ex.send(msg.ArmReset()))                                       # at rest: armed
     log.append(ex.send(msg.MoveTo(1, 10_000_000, 1000, 1000)))                # beyond max twist
     log.append(ex.send(msg.MoveTo(1, 1000, 0, 1000)))                         # zero rate
     log.append(ex.send(msg.MoveTo(1, 1000, 10**6, 1000)))                     # rate beyond max
@@ -150,6 +152,7 @@ def every_command_and_refusal(ex: Exchange) -> list:
     log.append(ex.send(msg.SetHeater(1, 60_000)))                             # heater beyond max
     log.append(ex.send(msg.SetSampling(1, 500)))                              # period too short
     log.append(ex.send(msg.SetSampling(1, ADS1115_CONVERSION_US - 1)))        # below one ADS1115 conversion
+    log.append(ex.send(msg.SetSampling(1, ADS1115_CONVERSION_US + 1)))        # between conversions: never rounded
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # starts at once
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # duplicate: same ACK again
     for i in range(17):                                                        # fill the queue, then one more

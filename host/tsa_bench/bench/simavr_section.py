@@ -36,6 +36,7 @@ class SimavrSettings:
     backdrive_steps_per_s: float = 16000.0
     ads_rate_error: float = 0.0
     twi_faults: tuple[str, ...] = ()
+    rdy_cuts: tuple[str, ...] = ()        # the ALERT/RDY wire cut between T0[:T1] s (firmware/sim/ads1115.c)
     hang_at_s: float | None = None
     hang_masked: bool = False             # the injected hang runs with interrupts masked
     trace: bool = False

@@ -311,6 +311,8 @@ def _execute_run(session: dict, interrupts) -> int:
         runner = Runner(client, plan, bench, consumers, operator, backend=backend, port_name=url,
                         interrupts=interrupts, resume=resume, metadata=session["meta"])
         stop = runner.run()
+        if stop.exit_status == "success" and not simulated:
+            client.arm_reset()   # the next open resets the Mega: keep the position across that reset
     finally:
         ser.close()
         if fil is not None:

@@ -18,6 +18,12 @@ reordered frames put back in order; its counters are :attr:`BenchClient.link`.
 The client never sleeps on wall time except while waiting for bytes from the port;
 ``on_wait`` (if set) is called while it waits, so a caller can break a long wait
 (the runner raises KeyboardInterrupt from it when the user asked to stop).
+Each QUEUE_STATUS that answers a HEARTBEAT is a clock sample ``(sent_s, received_s,
+device_us)`` (host ``time.monotonic`` at the HEARTBEAT's last transmission and at the
+reply's arrival, the device's t_us), kept for :meth:`BenchClient.take_round_trips`
+(the runner fits the device clock with them: runner/clock_fit.py).
+:meth:`BenchClient.arm_reset` tells the device the host is about to reopen the port on
+purpose, so the position survives that reset.
 """
 
 from __future__ import annotations
@@ -58,6 +64,8 @@ class BenchClient:
         self._inbox: deque[NamedTuple] = deque()
         self._last_dev_us: int | None = None
         self._late_acks: list[msg.Ack] = []
+        self._heartbeat_sent_s: float | None = None
+        self._round_trips: deque[tuple[float, float, int]] = deque(maxlen=256)
         # ports with a simulated device in this process (sim://) pass frames without bytes;
         # looked up on the class, so a wrapper that only forwards attributes (a port that
         # drops or corrupts bytes) keeps the byte path
@@ -113,6 +121,12 @@ class BenchClient:
             if t_us is not None:
                 self._last_dev_us = t_us
                 break
+        if self._heartbeat_sent_s is not None and msg.QueueStatus in set(map(type, out)):
+            received = time.monotonic()
+            for m in out:
+                if type(m) is msg.QueueStatus:
+                    self._round_trips.append((self._heartbeat_sent_s, received, m.t_us))
+            self._heartbeat_sent_s = None
         return out
 
     def _write(self, frame: bytes, seq: int | None = None, message: NamedTuple | None = None) -> None:
@@ -239,6 +253,8 @@ class BenchClient:
             if transmissions:
                 self.retransmissions += 1
             self._write(frame, seq, message)
+            if type(message) is msg.Heartbeat:
+                self._heartbeat_sent_s = self.last_tx_wall
             transmissions += 1
             ack = self._await(lambda m: isinstance(m, msg.Ack) and m.acked_seq == seq, self.ack_timeout_s)
             if ack is not None:
@@ -285,6 +301,21 @@ class BenchClient:
             raise NoAcknowledgement(f"no QUEUE_STATUS after HEARTBEAT on {self._port_name()}")
         self._inbox.append(found)
         return found  # type: ignore[return-value]
+
+    def take_round_trips(self) -> list[tuple[float, float, int]]:
+        """HEARTBEAT round trips since the last call: ``(sent_s, received_s, device_us)``."""
+        out = list(self._round_trips)
+        self._round_trips.clear()
+        return out
+
+    def arm_reset(self) -> bool:
+        """ARM_RESET before the port is closed and opened again on purpose (a Mega resets
+        when its port opens): the device keeps its position across that reset. Best effort:
+        False when the device refused (position unknown, a move under way) or did not answer."""
+        try:
+            return self.command(msg.ArmReset(), check=False).status == msg.Status.OK
+        except (NoAcknowledgement, ConnectionLost):
+            return False
 
     def set_position(self, steps: int) -> msg.Ack:
         """SET_POSITION: declare where the motor is now (steps; 0 = strings untwisted).

@@ -208,10 +208,12 @@ class RigLink:
         self.client.stop()
 
     def close(self) -> None:
-        """Leave the rig at rest: STOP, sampling off (best effort)."""
+        """Leave the rig at rest: STOP, sampling off, the reset of the next open armed so the
+        position survives it (best effort: refused while the motor still decelerates)."""
         try:
             self.stop()
             self.client.command(msg.SetSampling(NO_SEGMENT, 0), check=False)
+            self.client.arm_reset()
         except DeviceError:
             pass
 

@@ -48,6 +48,7 @@ from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.protocol.blocks import refusal_reason
 from tsa_bench.runner.checks import PlanRejected, check_plan_against_device  # noqa: F401 (re-exported)
+from tsa_bench.runner.clock_fit import RunClocks
 from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
 from tsa_bench.rundocs import (
     EventRecord, RunConsumer, RunStart, RunStop, SegmentRecord, StorageFull,
@@ -138,6 +139,7 @@ class Runner:
         self.samples_discarded = 0
         self._segments_done = 0
         self._pacing = Pacing(client, plan, self.ident)   # heartbeats, batched delivery (runner/pacing.py)
+        self._clocks = RunClocks(self._pacing.device_clock)   # device and sensor clock fits (runner/clock_fit.py)
         self._tracking = Tracking.for_plan(plan, self.spt)   # track_length segments (runner/tracking.py)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
@@ -154,11 +156,13 @@ class Runner:
         else:
             self._emit(name, doc)
 
-    def _t(self, t_us: int) -> float:
+    def _t(self, t_us: float) -> float:
         return (t_us - (self._t0_us or 0)) / 1e6
 
-    def _event(self, kind: str, detail: str, t_us: int | None = None) -> None:
-        self._emit_later("on_event", EventRecord(self._t(self._now_us if t_us is None else t_us), kind, detail))
+    def _event(self, kind: str, detail: str, t_us: float | None = None) -> None:
+        if t_us is None:    # a host-side event: now, on the device's clock
+            t_us = self._clocks.event_us(self._now_us, time.monotonic())
+        self._emit_later("on_event", EventRecord(self._t(t_us), kind, detail))
 
     # -- protocol helpers --------------------------------------------------
     def _unwrap(self, wire: int) -> int:
@@ -228,7 +232,7 @@ class Runner:
             except Exception as exc:
                 status, reason = "failed", f"{reason}; then host error: {type(exc).__name__}: {exc}"
             stop = RunStop(status, reason, self._t(self._now_us), self.samples, self.samples_lost,
-                           self._segments_done, time.monotonic() - wall0)
+                           self._segments_done, time.monotonic() - wall0, attrs=self._clocks.attrs())
             for consumer in self.consumers:  # every consumer gets to close, even if another fails
                 try:
                     consumer.on_stop(stop)
@@ -435,6 +439,7 @@ class Runner:
             self._on_event(m)
         elif isinstance(m, msg.QueueStatus):
             self._last_status = m
+            self._clocks.on_status(m, self.client.take_round_trips())
             self._now_us = max(self._now_us, m.t_us)
             if self._t0_us is None:
                 self._t0_us = m.t_us
@@ -473,6 +478,7 @@ class Runner:
             self._event("sample_gap", f"{gap} sample(s) lost before counter {counter}", t_us)
         if t_us > self._now_us:
             self._now_us = t_us
+        t_us = self._clocks.stamp(counter, t_us)   # the sensor fit's time while sampling continuously
         self._last_counter = counter
         if self._prompt_segment is not None:
             seg = self._prompt_segment

@@ -21,6 +21,8 @@ implements it:
   (QUEUE_STATUS.state position_unknown): MOVE_TO/MOVE_BY are refused ``bad_state`` until
   SET_POSITION declares the position (refused ``bad_state`` while a move runs, waits or
   the motor is stopping or released, ``limit_exceeded`` outside the twist limits).
+  ARM_RESET is accepted at rest with the position known (``bad_state`` otherwise, as the
+  firmware); a simulated device never resets, so it changes nothing else.
 * Every other command gets ACK(acked_seq, acked_id, status, queue_free) before any
   EVENT it causes; HEARTBEAT is also answered with QUEUE_STATUS. A frame repeating the
   seq and id of the last *accepted* command is not executed again: the stored ACK is
@@ -28,7 +30,8 @@ implements it:
   so its repetition is simply evaluated again (a QUEUE_FULL retry can succeed).
 * Queued commands are checked in this order: latched fault or (moves) position
   unknown -> ``bad_state``; zero rate/accel -> ``bad_argument``; a sampling period
-  shorter than an ADS1115 conversion -> ``too_fast_for_sensor``, or whose sample
+  shorter than an ADS1115 conversion -> ``too_fast_for_sensor``, below the single-shot
+  minimum not a whole number of conversions -> ``between_conversions``, or whose sample
   frames the line (the bench's baud) cannot carry -> ``too_fast_for_line``
   (:func:`tsa_bench.protocol.blocks.sampling_refusal`); rate, accel,
   heater, MOVE_TO target or MOVE_BY projected target beyond the limits ->
@@ -61,7 +64,9 @@ implements it:
 * Every EVENT's ``value`` is the step position at that instant (the rest position for
   STOPPED and FAULT); ``code`` is the fault for FAULT, FAULT_CLEARED and MOTOR_RELEASED,
   else 0. QUEUE_STATUS carries the state bits and the position; its error counters
-  (step underruns, UART, I2C) stay 0: the simulation has no such hardware.
+  (step underruns, UART, I2C), ``max_pass_us`` and ``sensor_restarts`` stay 0: the
+  simulation has no such hardware; ``sensor_period_ns`` is the simulated ADS1115's
+  conversion period (1/860 s) while sampling continuously, else 0.
 * Undecodable frames are dropped and counted (:attr:`frame_errors`); a valid frame
   with an id this device does not accept gets ``unknown_message``, a wrong payload
   length ``bad_length``.
@@ -448,8 +453,9 @@ class SimDevice:
     def _queue_status(self) -> msg.QueueStatus:
         ex = self.executor
         position, _ = ex.position_at(self.now_s)
+        period_ns = round(1e9 / ADS1115_SPS) if self._step_us else 0
         return msg.QueueStatus(self._t_us(self.now_s), ex.queue_free, int(ex.executing), ex.segment, self.fault,
-                               self.state, position, 0, 0, 0, 0)
+                               self.state, position, 0, 0, 0, 0, 0, period_ns, 0)
 
     def _check(self, message: NamedTuple) -> msg.Status:
         lim = self.limits
@@ -460,6 +466,12 @@ class SimDevice:
                 return _S.BAD_STATE
             if not lim.min_twist_steps <= message.position_steps <= lim.max_twist_steps:
                 return _S.LIMIT_EXCEEDED
+            return _S.OK
+        if kind is msg.ArmReset:
+            ex = self.executor
+            if not self.position_known or ex.move_waiting or ex.stopping \
+                    or self.motor_released:
+                return _S.BAD_STATE
             return _S.OK
         if not isinstance(message, _QUEUED_TYPES):
             return _S.OK
@@ -508,6 +520,8 @@ class SimDevice:
                                  code)
         elif kind is msg.SimSetLoad:
             self.plant.set_load(message.load_mg * 1e-3)
+        elif kind is msg.ArmReset:
+            pass    # a simulated device never resets: nothing to keep
         else:
             command: QueuedCommand = message  # type: ignore[assignment]
             self.executor.push(command, self.now_s)
