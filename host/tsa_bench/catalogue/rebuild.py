@@ -43,8 +43,7 @@ def rebuild(cat: Catalogue, folder: str | Path, *, with_hash: bool = True,
     files = run_files(folder)
     known = {r.path: r for r in cat.search(folder=folder, newest_first=False)}
     with BoundedReader(with_hash=with_hash) as reader:
-        for i, path in enumerate(files):
-            facts, why = reader.read(path)
+        for i, (path, facts, why) in enumerate(reader.read_all(files)):
             if facts is None:
                 report.unreadable.append((str(path), why or "unreadable"))
                 continue

@@ -19,11 +19,14 @@ hangs or crashes is replaced, and that file gets a one-line problem instead of f
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import hashlib
 import json
 import os
 import signal
 import threading
+from collections import deque
+from collections.abc import Iterable, Iterator
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -57,14 +60,24 @@ def utc(iso: str) -> dt.datetime | None:
     return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
 
 
-def protocol_load_g(protocol_text: str, variables: dict[str, Any] | None = None) -> float | None:
-    """The protocol's top-level ``load_g`` (g), a ``$name`` resolved; None when it declares none."""
+@functools.lru_cache(maxsize=64)
+def _yaml(text: str) -> Any:
+    """Plain data of a YAML text stored in a run file (libyaml's safe loader when there is
+    one; remembered, as a lab's runs share their bench and protocol texts: a rebuild reads
+    a thousand); None when it does not parse. Callers only read the result. Files written
+    by someone else are read in :class:`BoundedReader`'s child, under its memory and time limits."""
     import yaml
 
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     try:
-        doc = yaml.safe_load(protocol_text) if protocol_text else None
+        return yaml.load(text, Loader=loader) if text else None
     except yaml.YAMLError:
         return None
+
+
+def protocol_load_g(protocol_text: str, variables: dict[str, Any] | None = None) -> float | None:
+    """The protocol's top-level ``load_g`` (g), a ``$name`` resolved; None when it declares none."""
+    doc = _yaml(protocol_text)
     if not isinstance(doc, dict):
         return None
     value = doc.get("load_g")
@@ -79,12 +92,8 @@ def protocol_load_g(protocol_text: str, variables: dict[str, Any] | None = None)
 
 
 def bench_name(bench_text: str) -> str | None:
-    import yaml
-
-    try:
-        doc = yaml.safe_load(bench_text) if bench_text else None
-    except yaml.YAMLError:
-        return None
+    """The ``name`` of a bench file's text."""
+    doc = _yaml(bench_text)
     return str(doc["name"]) if isinstance(doc, dict) and "name" in doc else None
 
 
@@ -191,15 +200,16 @@ def _child_loop(conn: Connection, with_hash: bool) -> None:  # pragma: no cover 
     os._exit(0)
 
 
-class BoundedReader:
-    """Facts of untrusted files, read in a forked child (module contract). Use as a context manager."""
+class _Child:
+    """One forked reader and the paths sent to it, in order."""
 
-    def __init__(self, *, with_hash: bool = True, timeout_s: float = TIMEOUT_S) -> None:
+    def __init__(self, with_hash: bool, timeout_s: float) -> None:
         self.with_hash, self.timeout_s = with_hash, timeout_s
-        self._proc = None
-        self._conn: Connection | None = None
+        self.proc = None
+        self.conn: Connection | None = None
+        self.sent: deque[Path] = deque()
 
-    def _start(self) -> None:
+    def start(self) -> None:
         import multiprocessing
 
         # fork is quick; with other threads running one may hold h5py's lock at the fork, so
@@ -207,47 +217,84 @@ class BoundedReader:
         fork = hasattr(os, "fork") and threading.active_count() == 1
         ctx = multiprocessing.get_context("fork" if fork else "spawn")
         parent, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_child_loop, args=(child, self.with_hash), daemon=True)
-        self._proc.start()
+        self.proc = ctx.Process(target=_child_loop, args=(child, self.with_hash), daemon=True)
+        self.proc.start()
         child.close()
-        self._conn = parent
+        self.conn = parent
 
-    def _stop(self, kill: bool) -> None:
-        if self._proc is None:
+    def stop(self, kill: bool) -> None:
+        if self.proc is None:
             return
         try:
             if kill:
-                self._proc.kill()
+                self.proc.kill()
             else:
-                self._conn.send(None)  # type: ignore[union-attr]
+                self.conn.send(None)  # type: ignore[union-attr]
         except (OSError, ValueError):
             pass
-        self._proc.join(10)
-        if self._proc.is_alive():
-            self._proc.kill()
-            self._proc.join()
-        self._conn.close()  # type: ignore[union-attr]
-        self._proc, self._conn = None, None
+        self.proc.join(10)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join()
+        self.conn.close()  # type: ignore[union-attr]
+        self.proc, self.conn = None, None
+
+    def send(self, path: Path, again: bool = False) -> None:
+        if self.proc is None:
+            self.start()
+        assert self.conn is not None
+        self.conn.send(str(path))
+        if not again:
+            self.sent.append(path)
+
+    def receive(self) -> tuple[Path, dict[str, Any] | None, str | None]:
+        """The oldest path sent and what the child found; a lost child is replaced and
+        the paths still waiting are sent to the new one."""
+        assert self.conn is not None and self.proc is not None
+        path = self.sent.popleft()
+        try:
+            if self.conn.poll(self.timeout_s):
+                facts, why = self.conn.recv()
+                return path, facts, why
+            self.stop(kill=True)
+            why = (f"damaged HDF5 file: reading its metadata did not finish in {self.timeout_s:g} s "
+                   "(the HDF5 library loops on it)")
+        except (EOFError, OSError):
+            code = self.proc.exitcode
+            self.stop(kill=True)
+            why = f"damaged HDF5 file: the HDF5 library crashed reading it (exit {code})"
+        for waiting in self.sent:
+            self.send(waiting, again=True)
+        return path, None, why
+
+
+class BoundedReader:
+    """Facts of untrusted files, read in forked children (module contract). Use as a context manager."""
+
+    def __init__(self, *, with_hash: bool = True, timeout_s: float = TIMEOUT_S, workers: int = 2) -> None:
+        self._children = [_Child(with_hash, timeout_s) for _ in range(max(1, workers))]
 
     def read(self, path: str | Path) -> tuple[dict[str, Any] | None, str | None]:
         """(facts, None) or (None, why this file gives none)."""
-        if self._proc is None:
-            self._start()
-        assert self._conn is not None and self._proc is not None
-        try:
-            self._conn.send(str(path))
-            if self._conn.poll(self.timeout_s):
-                return self._conn.recv()
-            self._stop(kill=True)
-            return None, (f"damaged HDF5 file: reading its metadata did not finish in {self.timeout_s:g} s "
-                          "(the HDF5 library loops on it)")
-        except (EOFError, OSError):
-            code = self._proc.exitcode
-            self._stop(kill=True)
-            return None, f"damaged HDF5 file: the HDF5 library crashed reading it (exit {code})"
+        (_, facts, why), = self.read_all([path])
+        return facts, why
+
+    def read_all(self, paths: Iterable[str | Path]) -> Iterator[tuple[Path, dict[str, Any] | None, str | None]]:
+        """(path, facts, why) for each path, in order. File k goes to child k mod workers,
+        which reads ahead while the caller handles earlier files."""
+        todo = [Path(p) for p in paths]
+        n = len(self._children)
+        ahead = 2 * n
+        for k in range(min(ahead, len(todo))):
+            self._children[k % n].send(todo[k])
+        for k in range(len(todo)):
+            yield self._children[k % n].receive()
+            if k + ahead < len(todo):
+                self._children[(k + ahead) % n].send(todo[k + ahead])
 
     def __enter__(self) -> "BoundedReader":
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._stop(kill=False)
+        for child in self._children:
+            child.stop(kill=False)
