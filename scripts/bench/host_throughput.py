@@ -153,6 +153,7 @@ def rigs(folder: Path, minutes: float) -> int:
 
     bench, protocol = write_inputs(folder, minutes * 60)
     names = "ABCD"
+    cpu0 = resource_children()
     with contextlib.ExitStack() as stack:
         ports = [stack.enter_context(native_pty("--speed", "1")) for _ in names]
         lab = folder / "four-rigs.yaml"
@@ -168,14 +169,14 @@ def rigs(folder: Path, minutes: float) -> int:
             time.sleep(30)
             samples_load.append(os.getloadavg()[0])
         out = proc.stdout.read()
-        usage = os.wait4(proc.pid, 0)[2] if False else None
         wall = time.monotonic() - t0
         load1 = os.getloadavg()
-    cpu = resource_children()
+    cpu = resource_children() - cpu0
     print(f"\n4 rigs at {RIG_SPS} samples/s for {minutes:g} min of device time (native firmware, wall-clock time, "
           f"behind ptys; one tsa-bench lab): exit {proc.returncode}, wall {wall:.0f} s")
     print(f"  load average (1 min) before {load0[0]:.1f}, during {min(samples_load, default=0):.1f}.."
-          f"{max(samples_load, default=0):.1f}, after {load1[0]:.1f}; CPU s of the lab and its runs: {cpu:.0f}")
+          f"{max(samples_load, default=0):.1f}, after {load1[0]:.1f}; CPU s of the lab, its runs and the firmware "
+          f"processes: {cpu:.0f}")
     bad = proc.returncode != 0
     print(f"  {'rig':<4} {'status':<8} {'samples':>9} {'samples/s':>10} {'counter gaps':>13} {'samples_lost':>13}")
     for n in names:
