@@ -93,6 +93,11 @@ def _one(path: Path) -> RunLine:
         return RunLine(path, "?", problem=f"not a readable HDF5 file ({type(exc).__name__})")
 
 
+def run_line(path: str | Path) -> RunLine:
+    """The line of one run file (as :func:`list_runs` gives it)."""
+    return _one(Path(path))
+
+
 def list_runs(folder: str | Path) -> list[RunLine]:
     """Every ``*.h5`` run file directly in ``folder`` (module contract)."""
     root = Path(folder)
