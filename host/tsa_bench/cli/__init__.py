@@ -2,7 +2,7 @@
 
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
 - :mod:`.data`: info, report, watch, export; :mod:`.importing`: import
-- :mod:`.catalogue`: ls, catalogue (rebuild, check); :mod:`.lab`: lab
+- :mod:`.catalogue`: ls, catalogue (rebuild, check); :mod:`.lab`: lab; :mod:`.serve`: serve
 - :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
 - :mod:`.models`: fit, predict, manipulator; :mod:`.estimate`: estimate
 - :mod:`.diagnose`: diagnose
@@ -36,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "ls": "catalogue:ls_cmd",
     "catalogue": "catalogue:catalogue_cmd",
     "lab": "lab:lab",
+    "serve": "serve:serve",
     "report": "data:report",
     "watch": "data:watch",
     "import": "importing:import_cmd",

@@ -27,6 +27,13 @@ file stays the only record, and :class:`LiveSidecar`, a run consumer placed AFTE
   after the run file is closed, so a reader that sees it may open the run file; then
   the sidecar is deleted (a reader holding it open still reads it to the end).
 
+Events (warnings, faults, prompts, sample gaps) go to a second file beside it,
+``RUN.h5.live.events`` (:func:`events_path`): one JSON object per line, ``{"t": s,
+"kind": ..., "detail": ...}`` (``t`` device time from the run start), created empty
+before the sidecar appears, each line written whole and flushed as the event comes, at
+most :data:`MAX_EVENTS` lines (then one ``events_truncated`` line), deleted at the end
+just before the sidecar. :class:`EventTail` reads it.
+
 A killed run leaves the sidecar without an end record; its ``pid`` then no longer
 exists. Nothing here can lose recorded data: the sidecar never touches the run file,
 and a sidecar that cannot be written is switched off with one warning on stderr (a
@@ -67,6 +74,10 @@ MAX_EXTRA_COLUMNS = 64
 END_KINDS = {"success": 1, "aborted": 2, "failed": 3}
 END_NAMES = {v: k for k, v in END_KINDS.items()}
 MAX_HEADER_BYTES = 64 * 1024
+#: Event lines a sidecar writes at most (a storm of sample gaps cannot fill the disk).
+MAX_EVENTS = 10_000
+#: Characters of an event's detail kept in the events file.
+MAX_DETAIL_CHARS = 1000
 
 
 def record_dtype(extra_columns: dict[str, tuple[str, str, dict[str, str]]] | None = None) -> np.dtype:
@@ -89,12 +100,21 @@ def sidecar_path(run_path: str | Path) -> Path:
     return p.with_name(p.name + ".live")
 
 
+def events_path(run_path: str | Path) -> Path:
+    """``RUN.h5`` -> ``RUN.h5.live.events`` (the sidecar's events, one JSON line each)."""
+    p = Path(run_path)
+    return p.with_name(p.name + ".live.events")
+
+
 class LiveSidecar:
     """Run consumer writing ``RUN.h5.live``; see the module contract."""
 
     def __init__(self, run_path: str | Path, flush_interval_s: float = 0.1, remove_at_end: bool = True) -> None:
         self.run_path = Path(run_path)
         self.path = sidecar_path(run_path)
+        self.events_path = events_path(run_path)
+        self._ev: BinaryIO | None = None
+        self.events = 0
         self.flush_interval_s = flush_interval_s
         self.remove_at_end = remove_at_end
         self._f: BinaryIO | None = None
@@ -122,6 +142,10 @@ class LiveSidecar:
                   "host": socket.gethostname(), "started": dt.datetime.now().astimezone().isoformat(timespec="seconds")}
         text = json.dumps(header).encode()
         tmp = self.path.with_name(self.path.name + ".tmp")
+        try:   # before the sidecar appears: a reader that sees the sidecar finds its events
+            self._ev = open(self.events_path, "wb")
+        except OSError as exc:
+            self._ev_fail(exc)
         try:
             f = open(tmp, "wb")
             f.write(MAGIC + struct.pack("<I", len(text)) + text)
@@ -131,6 +155,16 @@ class LiveSidecar:
             self._last_flush = time.monotonic()
         except OSError as exc:
             self._fail(exc)
+
+    def _ev_fail(self, exc: BaseException) -> None:
+        print(f"warning: live events disabled, cannot write {self.events_path}: {exc} (the run file is not affected)",
+              file=sys.stderr)
+        try:
+            if self._ev is not None:
+                self._ev.close()
+        except OSError:
+            pass
+        self._ev = None
 
     def _write(self, rec: np.ndarray, force: bool = False) -> None:
         if self._f is None:
@@ -161,7 +195,20 @@ class LiveSidecar:
             self._write(np.zeros(0, dtype=self.dtype), force=True)
 
     def on_event(self, event: EventRecord) -> None:
-        pass
+        if self._ev is None or self.events > MAX_EVENTS:
+            return
+        self.events += 1
+        t = float(event.t) if np.isfinite(event.t) else None
+        if self.events > MAX_EVENTS:
+            item = {"t": t, "kind": "events_truncated",
+                    "detail": f"more than {MAX_EVENTS} events: the rest are in the run file only"}
+        else:
+            item = {"t": t, "kind": str(event.kind), "detail": str(event.detail)[:MAX_DETAIL_CHARS]}
+        try:   # one write of a whole line, flushed at once: the page shows it as it happens
+            self._ev.write((json.dumps(item) + "\n").encode())
+            self._ev.flush()
+        except (OSError, ValueError) as exc:
+            self._ev_fail(exc)
 
     def on_stop(self, stop: RunStop) -> None:
         end = np.zeros(1, dtype=self.dtype)
@@ -170,6 +217,14 @@ class LiveSidecar:
         end["counter"] = stop.samples
         end["segment"] = stop.segments_done
         self._write(end, force=True)
+        if self._ev is not None:
+            try:
+                self._ev.close()
+                if self.remove_at_end:
+                    self.events_path.unlink()
+            except OSError as exc:
+                self._ev_fail(exc)
+            self._ev = None
         if self._f is None:
             return
         try:
@@ -291,6 +346,50 @@ class LiveTail:
         except OSError:
             return True
         return True
+
+    def close(self) -> None:
+        self._f.close()
+
+
+class EventTail:
+    """Reads ``RUN.h5.live.events`` while it grows: :meth:`poll` returns the new events.
+
+    Like :class:`LiveTail`: read-only, no lock, regular files only, held open (readable
+    after the writer deletes it). Only whole lines are taken; a line longer than
+    :data:`MAX_LINE_BYTES` or not a JSON object comes back as an ``unreadable`` event,
+    and at most ``max_bytes`` are read per call (the rest on the next).
+    """
+
+    MAX_LINE_BYTES = 4 * MAX_DETAIL_CHARS + 256
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise LiveFormatError(f"{self.path}: not a regular file, so not a live events file")
+        self._f = os.fdopen(fd, "rb")
+        self._partial = b""
+
+    def poll(self, max_bytes: int = 256 * 1024) -> list[dict[str, Any]]:
+        """New events ``{"t": s or None, "kind": str, "detail": str}`` since the last call."""
+        raw = self._partial + self._f.read(max_bytes)
+        *lines, self._partial = raw.split(b"\n")
+        if len(self._partial) > self.MAX_LINE_BYTES:   # a line that never ends: drop what came
+            lines.append(self._partial)
+            self._partial = b""
+        return [self._event(line) for line in lines if line.strip()]
+
+    def _event(self, line: bytes) -> dict[str, Any]:
+        try:
+            item = json.loads(line.decode("utf-8")) if len(line) <= self.MAX_LINE_BYTES else None
+        except (UnicodeDecodeError, ValueError):
+            item = None
+        if not isinstance(item, dict):
+            return {"t": None, "kind": "unreadable", "detail": f"{self.path}: an event line that is not JSON"}
+        t = item.get("t")
+        t = float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and np.isfinite(t) else None
+        return {"t": t, "kind": str(item.get("kind", ""))[:64], "detail": str(item.get("detail", ""))[:MAX_DETAIL_CHARS]}
 
     def close(self) -> None:
         self._f.close()
