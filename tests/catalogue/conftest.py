@@ -3,7 +3,8 @@
 PostgreSQL: ``$TSA_BENCH_TEST_POSTGRES`` (a URL of a database the test user may create
 databases from), else the local socket's ``tsa_bench_test`` database that
 scripts/setup-test-services.sh creates. Each test gets a database of its own, dropped
-after it. Where no server answers, the PostgreSQL cases are skipped with the reason.
+after it. Where no server answers, the PostgreSQL cases are skipped with the reason, and
+fail on CI (tests/services.py).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import os
 import uuid
 
 import pytest
+
+from tests.services import unavailable
 
 PG_BASE = os.environ.get("TSA_BENCH_TEST_POSTGRES", "postgresql:///tsa_bench_test?host=/var/run/postgresql")
 
@@ -27,7 +30,10 @@ def _admin_engine():
 @pytest.fixture
 def pg_url():
     """A fresh PostgreSQL database's URL (skipped with the reason when no server answers)."""
-    pytest.importorskip("psycopg", reason="psycopg (the [postgres] extra) is not installed")
+    try:
+        import psycopg  # noqa: F401
+    except ImportError:
+        unavailable("psycopg (the [postgres] extra, in [dev]) is not installed")
     from sqlalchemy import text
     from sqlalchemy.engine import make_url
     from sqlalchemy.exc import OperationalError
@@ -39,7 +45,7 @@ def pg_url():
             conn.execute(text(f'CREATE DATABASE "{name}"'))
     except OperationalError as exc:
         admin.dispose()
-        pytest.skip(f"no PostgreSQL server at {PG_BASE} (scripts/setup-test-services.sh starts one): "
+        unavailable(f"no PostgreSQL server at {PG_BASE} (scripts/setup-test-services.sh starts one): "
                     f"{str(exc.orig).strip().splitlines()[0]}")
     url = make_url(admin.url).set(database=name).render_as_string(hide_password=False)
     try:

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from starlette.testclient import TestClient   # starlette and httpx are in [dev]: missing is an error, not a skip
 
 from tests.catalogue.helpers import ENV, ROOT, short_protocol
 from tsa_bench import catalogue
@@ -22,9 +23,6 @@ from tsa_bench.web.board import History, pick
 from tsa_bench.web.figures import FigureCache
 from tsa_bench.web.recent import CatalogueView
 from tsa_bench.web.server import check_address, is_loopback, ServeError
-
-starlette_testclient = pytest.importorskip("starlette.testclient", reason="starlette and httpx ([dev]) are needed")
-
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory) -> Path:
@@ -38,7 +36,7 @@ def recorded(tmp_path_factory) -> Path:
 
 
 def _client(runs: Path, cache: Path):
-    return starlette_testclient.TestClient(create_app(runs, str(runs / "catalogue.sqlite"), cache),
+    return TestClient(create_app(runs, str(runs / "catalogue.sqlite"), cache),
                                            base_url="http://127.0.0.1")
 
 
