@@ -95,3 +95,27 @@ def test_two_processes_registering_500_runs_each_at_once_lose_none(catalogue_url
         assert [r.path for r in mine] == [f"/runs/{who}-{i:04d}.h5" for i in range(500)]
         assert all(r.status == "success" and r.samples == r.meta["i"] and r.reason == "all segments done"
                    for r in mine)
+
+
+def test_a_write_that_meets_a_lock_longer_than_the_busy_timeout_is_retried_not_lost(tmp_path, monkeypatch):
+    """Another writer holds SQLite's write lock past the busy timeout (a slow host, a long
+    rebuild): the registration waits and retries instead of failing the row."""
+    import sqlite3
+    import threading
+
+    from tsa_bench.catalogue import database
+
+    monkeypatch.setattr(database, "BUSY_TIMEOUT_S", 0.05)
+    path = tmp_path / "catalogue.sqlite"
+    with catalogue.open(str(path)) as cat:
+        cat.upsert(dict(path="/lab/first.h5", status="success"))
+        holder = sqlite3.connect(path, isolation_level=None, check_same_thread=False)
+        holder.execute("BEGIN IMMEDIATE")   # the write lock, held well past 0.05 s
+        released = threading.Timer(1.0, holder.execute, ("COMMIT",))
+        released.start()
+        try:
+            run_id = cat.upsert(dict(path="/lab/second.h5", status="running"))
+        finally:
+            released.join()
+            holder.close()
+        assert cat.get(run_id).path == "/lab/second.h5" and cat.count() == 2
