@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from tsa_bench.store.hdf5 import FORMAT as RUN_FORMAT
-from tsa_bench.store.probe import MEMORY_LIMIT_BYTES, TIMEOUT_S
+from tsa_bench.store.probe import MEMORY_LIMIT_BYTES, TIMEOUT_S, limit_memory
 
 
 def _text(value: Any) -> str:
@@ -108,27 +108,12 @@ def meta_fields(meta: dict[str, Any], plan_load_g: float | None) -> dict[str, An
     return out
 
 
-def writer_alive(path: Path) -> bool:
-    """Whether the run file's live sidecar is written by a living process on this host."""
-    from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
-
-    side = sidecar_path(path)
-    if not side.is_file():
-        return False
-    try:
-        tail = LiveTail(side)
-    except (LiveFormatError, OSError):
-        return False
-    try:
-        return bool(tail.writer_alive())
-    finally:
-        tail.close()
-
-
 def file_facts(path: str | Path, *, with_hash: bool = True) -> dict[str, Any]:
     """The row fields ``path`` determines (module contract); ValueError when it is not a run file."""
     import h5py
     import numpy as np
+
+    from tsa_bench.store.live import recording
 
     p = Path(path).resolve()
     st = p.stat()
@@ -165,7 +150,7 @@ def file_facts(path: str | Path, *, with_hash: bool = True) -> dict[str, Any]:
             meta=meta, resumed_from=_text(a["resumed_from"]) if "resumed_from" in a else None,
             continued_in=_text(a["continued_in"]) if "continued_in" in a else None)
     if status == "running":
-        facts["status"] = "running" if writer_alive(p) else "killed"
+        facts["status"] = "running" if recording(p) else "killed"
     variables = meta.get("protocol_variables") if isinstance(meta.get("protocol_variables"), dict) else None
     facts.update(meta_fields(meta, protocol_load_g(protocol, variables)))
     facts.update(size_bytes=st.st_size, mtime_ns=st.st_mtime_ns,
@@ -174,14 +159,7 @@ def file_facts(path: str | Path, *, with_hash: bool = True) -> dict[str, Any]:
 
 
 def _child_loop(conn: Connection, with_hash: bool) -> None:  # pragma: no cover - runs in the child
-    try:
-        import resource
-
-        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-        limit = MEMORY_LIMIT_BYTES if hard == resource.RLIM_INFINITY else min(MEMORY_LIMIT_BYTES, hard)
-        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-    except (ImportError, ValueError, OSError):
-        pass
+    limit_memory()
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # the parent decides what Ctrl-C does
     while True:
         try:

@@ -98,11 +98,11 @@ def _local(when) -> str:
 
 def _shown_status(row) -> tuple[str, str]:
     """(status, note) as the file says now."""
-    from tsa_bench.catalogue.runfiles import writer_alive
+    from tsa_bench.store.live import recording
 
     state = row.file_state()
     if state == "running":
-        return ("recording", "being recorded (tsa-bench watch shows it)") if writer_alive(Path(row.path)) else (
+        return ("recording", "being recorded (tsa-bench watch shows it)") if recording(row.path) else (
             "killed", "its recording process is gone: tsa-bench catalogue rebuild reads the file again")
     note = {"missing": "FILE MISSING", "changed": "FILE CHANGED since it was registered: tsa-bench catalogue "
             "rebuild reads it again", "elsewhere": f"on host {row.host}"}.get(state, "")

@@ -19,7 +19,7 @@ import numpy as np
 
 from tsa_bench.userfiles import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import FORMAT
-from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
+from tsa_bench.store.live import recording
 from tsa_bench.store.probe import check_hdf5_terminates
 
 
@@ -44,26 +44,12 @@ def _text(value) -> str:
     return str(value)
 
 
-def _recording(path: Path) -> bool:
-    side = sidecar_path(path)
-    if not side.is_file():
-        return False
-    try:
-        tail = LiveTail(side)
-    except (LiveFormatError, OSError):
-        return False
-    try:
-        return bool(tail.writer_alive())
-    finally:
-        tail.close()
-
-
 def _one(path: Path) -> RunLine:
     try:
         check_regular_file(path, "run file")
     except DocumentError as exc:
         return RunLine(path, "?", problem=exc.message)
-    if _recording(path):
+    if recording(path):
         return RunLine(path, "recording", problem="being recorded (tsa-bench watch shows it)")
     why = check_hdf5_terminates(path)
     if why:

@@ -106,6 +106,21 @@ def events_path(run_path: str | Path) -> Path:
     return p.with_name(p.name + ".live.events")
 
 
+def recording(run_path: str | Path) -> bool:
+    """Whether ``run_path``'s live sidecar is written by a living process on this host."""
+    side = sidecar_path(run_path)
+    if not side.is_file():
+        return False
+    try:
+        tail = LiveTail(side)
+    except (LiveFormatError, OSError):
+        return False
+    try:
+        return bool(tail.writer_alive())
+    finally:
+        tail.close()
+
+
 class LiveSidecar:
     """Run consumer writing ``RUN.h5.live``; see the module contract."""
 
