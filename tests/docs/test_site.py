@@ -80,6 +80,9 @@ def test_api_reference_renders_the_public_functions(site):
         "api/simulating.html": ["tsa_bench.sim.simulate"],
         "api/models.html": ["tsa_bench.models.fitting.fit", "tsa_bench.models.saved.SavedModel"],
         "api/diagnose.html": ["tsa_bench.analysis.diagnose", "tsa_bench.analysis.DiagnoseResult"],
+        "api/bluesky.html": ["tsa_bench.bluesky.device.TsaRig", "tsa_bench.bluesky.flyer.ProtocolFlyer",
+                             "tsa_bench.bluesky.plans.run_protocol", "tsa_bench.bluesky.bridge.RunFileWriter",
+                             "tsa_bench.bluesky.session.PositionUnknown"],
     }
     for page, names in objects.items():
         html = (site / page).read_text(encoding="utf-8")
