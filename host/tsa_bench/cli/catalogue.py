@@ -21,6 +21,7 @@ from pathlib import Path
 import click
 
 from tsa_bench.cli.exits import EXIT_FAILED, fail
+from tsa_bench.cli.loading import MAX_MEMORY
 
 NO_CATALOGUE = "none"
 
@@ -181,6 +182,7 @@ def _from_files(folder: str):
 @click.option("--limit", type=click.IntRange(1), default=None, help="At most this many (the newest).")
 @click.option("--json", "as_json", is_flag=True, help="A JSON list of objects, one per run, instead of the table.")
 @click.option("--open", "open_id", type=int, default=None, metavar="ID", help="Print the path of run ID and stop.")
+@MAX_MEMORY
 def ls_cmd(folder: str | None, catalogue_url: str | None, wheres: tuple[str, ...], statuses: tuple[str, ...],
            since: str | None, until: str | None, limit: int | None, as_json: bool, open_id: int | None) -> None:
     """The runs of FOLDER (default runs/) from its catalogue, oldest first: status, id, start, duration,

@@ -12,6 +12,7 @@ import sys
 import click
 
 from tsa_bench.cli.catalogue import CATALOGUE_OPTION
+from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import EXIT_BAD_INPUT
 
 
@@ -84,6 +85,7 @@ def _numbers(pairs: dict[str, str], option: str) -> dict[str, float]:
 @click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
 @click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
 @CATALOGUE_OPTION
+@MAX_MEMORY
 def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], no_header: bool,
                delimiter: str | None, decimal: str | None, sheet: str | None, var: str | None, group: str | None,
                sample_period_s: float | None, time_order: str, segments: str, thresholds: tuple[str, ...],

@@ -12,7 +12,8 @@ import time
 
 import click
 
-from tsa_bench.cli.exits import fail, unwritable_reason
+from tsa_bench.cli.exits import check_output_folder, fail, unwritable_reason
+from tsa_bench.cli.loading import FORCE
 
 
 def _num(v: float | None) -> str:
@@ -30,8 +31,9 @@ def _num(v: float | None) -> str:
               help="Calibration plan (default: configs/thesis/calibration.yaml).")
 @click.option("--chapter", type=int, default=None, help="Only the records of this thesis chapter.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Noise seed of the simulated runs.")
+@FORCE
 def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: str | None, plan_file: str | None,
-              chapter: int | None, seed: int) -> None:
+              chapter: int | None, seed: int, force: bool) -> None:
     """Run each thesis experiment on its simulated preset and print thesis vs simulated, gap and verdict.
 
     Verdicts: agrees (within the thesis's own spread), disagrees (with the named reason),
@@ -60,6 +62,7 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
     why = unwritable_reason(figures_dir) if figures_dir is not None else None
     if why:   # before the experiments run, not after them
         fail(f"{figures_dir}: cannot write the figures there ({why})")
+    check_output_folder(figures_dir, force)
     lab = Lab(seed=seed, quick=quick)
     rows = evaluate(records, lab, plan)
     summ = summary(rows)
@@ -68,8 +71,12 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
     if figures_dir is not None:
         from tsa_bench.reproduce.figures import write_figures
 
+        from tsa_bench.outputs import OutputExists
+
         try:
             written = write_figures(records, rows, figures_dir)
+        except OutputExists as exc:
+            fail(str(exc))
         except OSError as exc:
             fail(f"{exc.filename or figures_dir}: cannot write the figure ({exc.strerror or exc})")
         for path in written:

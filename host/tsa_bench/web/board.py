@@ -5,9 +5,9 @@ resistance in ohm (None where not measured), twist in turns, heater in V, load i
 
 Contract: :class:`Board` finds the runs being recorded (``*.h5.live`` in the runs folder,
 and the live sidecars of the catalogue's running rows, :meth:`Board.add_sidecar`) and
-follows each with :class:`~tsa_bench.store.live.LiveTail` and
-:class:`~tsa_bench.store.live.EventTail`: read-only, no lock, never the run file, so the
-recording process never waits for the board. :meth:`Board.poll` returns one update per
+follows each with :class:`~tsa_bench.store.live.LiveTail` (samples, and the events the
+sidecar's journal carries): read-only, no lock, never the run file, so the recording
+process never waits for the board. :meth:`Board.poll` returns one update per
 run that changed (new points, new events, new state) and :meth:`Board.snapshot` the
 whole board, both JSON-ready. Memory is bounded whatever the run's length: at most
 :data:`MAX_POINTS` points per run (when full, every other point is dropped, so the whole
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from tsa_bench.store.live import EventTail, LiveFormatError, LiveTail, events_path
+from tsa_bench.store.live import LiveFormatError, LiveTail
 
 #: Channels plotted, as (column of the sidecar, key on the page).
 CHANNELS = (("length", "length"), ("resistance", "resistance"), ("turns", "twist"),
@@ -37,6 +37,8 @@ CHANNELS = (("length", "length"), ("resistance", "resistance"), ("turns", "twist
 MAX_POINTS = 4000
 POINTS_PER_POLL = 16
 MAX_EVENTS = 200
+#: Characters of an event's detail shown.
+MAX_DETAIL_CHARS = 1000
 MAX_RUNS = 64
 KEEP_ENDED_S = 600.0
 #: Wall-clock window (s) over which the device-time rate behind the ETA is measured.
@@ -94,7 +96,6 @@ class LiveRun:
     key: str
     run_path: Path
     tail: LiveTail
-    events: EventTail | None
     info: dict[str, Any] = field(default_factory=dict)   # from the catalogue: rig, sample, load_g, id, reason
     history: History = field(default_factory=History)
     event_log: collections.deque = field(default_factory=lambda: collections.deque(maxlen=MAX_EVENTS))
@@ -116,7 +117,7 @@ class LiveRun:
         if self.status != "running":
             return None
         update: dict[str, Any] = {}
-        rec = self.tail.poll()
+        rec, new_events = self._read()
         if len(rec):
             if self.first_sample_wall is None:
                 self.first_sample_wall = now
@@ -133,12 +134,12 @@ class LiveRun:
             self._rate.append((now, float(last["t"])))
             while len(self._rate) > 2 and now - self._rate[0][0] > RATE_WINDOW_S:
                 self._rate.popleft()
-        new_events = self.events.poll() if self.events is not None else []
         if self.tail.ended:
             self._end(self.tail.ended, now)
         elif self.tail.writer_alive() is False:
-            rec = self.tail.poll()   # whatever it flushed before dying is not plotted; the end is what matters
+            rec, late = self._read()   # whatever it wrote before dying is not plotted; the end is what matters
             self.samples += len(rec)
+            new_events += late
             if not self.tail.ended:
                 new_events.append({"t": self.latest.get("t"), "kind": "killed",
                                    "detail": f"the recording process {self.header.get('pid')} is gone without "
@@ -156,12 +157,27 @@ class LiveRun:
         update["state"] = self.state(now)
         return update
 
+    def _read(self) -> tuple[np.ndarray, list[dict[str, Any]]]:
+        """The sidecar's new sample records and events (the newest :data:`MAX_EVENTS`)."""
+        parts: list[np.ndarray] = []
+        events: collections.deque = collections.deque(maxlen=MAX_EVENTS)
+        for kind, value in self.tail.items():
+            if kind == "samples":
+                parts.append(value)
+            elif kind == "event":
+                t, name, detail = value
+                t = _number(t) if isinstance(t, (int, float)) and not isinstance(t, bool) else None
+                events.append({"t": t, "kind": str(name)[:64], "detail": str(detail)[:MAX_DETAIL_CHARS]})
+        if not parts:
+            rec = np.zeros(0, dtype=self.tail.dtype)
+        else:
+            rec = parts[0] if len(parts) == 1 else np.concatenate(parts)
+        return rec, list(events)
+
     def _end(self, status: str, now: float) -> None:
         self.status = status
         self.ended_wall = now
         self.tail.close()
-        if self.events is not None:
-            self.events.close()
 
     def eta_s(self, now: float) -> float | None:
         """Wall-clock seconds to the plan's estimated end at the device-time rate of late."""
@@ -224,12 +240,8 @@ class Board:
             self._refused[sidecar] = str(exc)
             return
         run_path = sidecar.with_name(sidecar.name[: -len(".live")])
-        try:
-            events = EventTail(events_path(run_path))
-        except (FileNotFoundError, LiveFormatError, OSError):
-            events = None   # a writer from before the events file, or one that could not write it
         self._keys += 1
-        self.runs[sidecar] = LiveRun(f"r{self._keys}", run_path, tail, events)
+        self.runs[sidecar] = LiveRun(f"r{self._keys}", run_path, tail)
 
     def poll(self, now: float | None = None) -> list[dict[str, Any]]:
         """One update per run that changed since the last call (``{"key", "points"?,
@@ -287,5 +299,3 @@ class Board:
             for run in self.runs.values():
                 if run.status == "running":
                     run.tail.close()
-                    if run.events is not None:
-                        run.events.close()
