@@ -186,3 +186,38 @@ def test_a_long_run_keeps_a_bounded_coarser_history():
     for n, k in ((5, 16), (1000, 16), (17, 16)):
         idx = pick(n, k)
         assert len(idx) <= k and idx[-1] == n - 1 and len(set(idx)) == len(idx)
+
+
+def test_the_board_takes_events_from_the_journal_newest_first_kept_and_bounded(tmp_path):
+    """A storm of events in a run's journal reaches the page as at most MAX_EVENTS per poll
+    (the newest), each detail cut to MAX_DETAIL_CHARS, beside the samples."""
+    import numpy as np
+
+    from tsa_bench.rundocs import SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock
+    from tsa_bench.store.live import LiveSidecar
+    from tsa_bench.web import board as board_module
+    from tsa_bench.web.board import Board
+
+    run = tmp_path / "storm.h5"
+    side = LiveSidecar(run)
+    side.on_start(RunStart(plan_name="storm", protocol_text="", protocol_path=None, bench_text="", bench_path=None,
+                           backend="sim", port="test", firmware="0.0.0", identity={}, n_segments=1,
+                           estimated_duration_s=10.0))
+    try:
+        t = np.arange(10, dtype=float)
+        cols = {name: np.zeros(10, dtype=dtype) for name, (dtype, _) in SAMPLE_COLUMNS.items()}
+        cols.update(t=t, length=250.0 + t, counter=np.arange(10))
+        side.on_samples(SampleBlock(cols))
+        n = 3 * board_module.MAX_EVENTS
+        for i in range(n):
+            side.on_event(EventRecord(float(i), "sample_gap", f"gap {i} " + "x" * 5000))
+        board = Board(tmp_path)
+        (new,) = board.poll()
+        events = new["events"]
+        assert len(events) == board_module.MAX_EVENTS and events[-1]["t"] == float(n - 1)
+        assert all(len(e["detail"]) == board_module.MAX_DETAIL_CHARS for e in events)
+        assert all(e["severity"] == "warning" for e in events) and new["state"]["warnings"] == board_module.MAX_EVENTS
+        assert new["state"]["samples"] == 10
+        board.close()
+    finally:
+        side.on_stop(RunStop("success", "done", 10.0, 10, 0, 1, 0.1))
