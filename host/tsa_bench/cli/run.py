@@ -224,7 +224,7 @@ def _prepare_run(session: dict, protocol, bench_path, port, out_dir, out_file, s
     resume = None
     if resume_file is not None:
         if protocol is not None or variables:
-            fail("give either PROTOCOL (and --set) or --resume RUN.h5 (a resumed run uses the protocol and the "
+            fail("give either PROTOCOL or --resume RUN.h5 (a resumed run uses the protocol and the --set "
                  "variables stored in RUN.h5)")
         from tsa_bench.cli.resume import prepare_resume
 
