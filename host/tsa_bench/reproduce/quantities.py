@@ -187,10 +187,10 @@ def _passive(lab: Lab, ply: int, load: float) -> float:
 
 
 def strain(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
-    """Passive strain from the twist sweep; active and thermal from the heating run (2.4.3)."""
-    ply = int(c["ply"])
+    """Passive strain from the twist sweep; active and thermal from the heating run (2.4.3);
+    the mean over the cases (every load of each ply named when the conditions name several)."""
     vals = []
-    for load in _list(c.get("load_g", LOADS[ply])):
+    for ply, load in _cases(c, "heat"):
         if a["kind"] == "passive":
             vals.append(_passive(lab, ply, float(load)) * 100.0)
             continue
