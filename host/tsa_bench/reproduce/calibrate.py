@@ -323,7 +323,8 @@ def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, 
     """
     held = sorted(r.id for r in records if plan.held_out is not None and r.id in plan.held_out)
     if held:
-        raise HeldOutError(f"the calibration was given held-out records ({', '.join(held)}); "
+        shown = ", ".join(held[:5]) + (f" and {len(held) - 5} more" if len(held) > 5 else "")
+        raise HeldOutError(f"the calibration was given {len(held)} held-out record(s) ({shown}); "
                            f"it reads only the fits' records ({plan.held_out_path})")
     results, extensions = [], []
     rejected: set[tuple[tuple[str, ...], str]] = set()
