@@ -139,6 +139,18 @@ def _record_id(reader: Reader, sink: ErrorSink, node: Node, where: str, ids: set
     return rid
 
 
+def _texts(reader: Reader, sink: ErrorSink, top: dict[str, Node], section: str, ids: set[str]) -> dict[str, str]:
+    """A ``{<record id>: <text>}`` section of the plan (absent: empty), each id checked."""
+    out: dict[str, str] = {}
+    for rid, vnode in (reader.mapping(top[section], section, _AnyKey()) or {}).items() if section in top else []:
+        text = reader.string(vnode, f"{section}.{rid}")
+        if rid not in ids:
+            sink.add(vnode, f"{section}.{rid}", f"no record with id {rid!r}")
+        elif text is not None:
+            out[rid] = " ".join(text.split())
+    return out
+
+
 def load_held_out(path: Path, ids: set[str]) -> dict[str, int]:
     """The held-out file's ids -> their line (module contract); RecordsError on any problem."""
     sink = ErrorSink(str(path))
@@ -233,14 +245,7 @@ def load_plan(records: list[Record], path: str | Path | None = None,
             if effect is not None and keys:
                 fit.extension = (effect, keys)
         fits.append(fit)
-    reasons: dict[str, str] = {}
-    if "reasons" in top:
-        for rid, vnode in (reader.mapping(top["reasons"], "reasons", _AnyKey()) or {}).items():
-            text = reader.string(vnode, f"reasons.{rid}")
-            if rid not in ids:
-                sink.add(vnode, f"reasons.{rid}", f"no record with id {rid!r}")
-            elif text is not None:
-                reasons[rid] = " ".join(text.split())
+    reasons = _texts(reader, sink, top, "reasons", ids)
     fitted = {rid for f in fits for rid in f.records}
     derived: dict[str, tuple[tuple[str, ...], str]] = {}
     if "derived" in top:
@@ -260,14 +265,7 @@ def load_plan(records: list[Record], path: str | Path | None = None,
                          "from held-out ones stays held out")
             elif how is not None and srcs and None not in srcs:
                 derived[rid] = (tuple(s for s in srcs if s is not None), " ".join(how.split()))
-    by_construction: dict[str, str] = {}
-    if "by_construction" in top:
-        for rid, vnode in (reader.mapping(top["by_construction"], "by_construction", _AnyKey()) or {}).items():
-            text = reader.string(vnode, f"by_construction.{rid}")
-            if rid not in ids:
-                sink.add(vnode, f"by_construction.{rid}", f"no record with id {rid!r}")
-            elif text is not None:
-                by_construction[rid] = " ".join(text.split())
+    by_construction = _texts(reader, sink, top, "by_construction", ids)
     if held is not None:
         built_ids = {rid for m in built.values() for rid in m.values()}
         for rec in records:
