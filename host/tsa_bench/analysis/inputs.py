@@ -3,7 +3,7 @@
 Units: t in s, turns in turns, heater voltage in V, load in g (converted from the
 file's N), length in mm, resistance in ohm.
 
-Contract: :func:`run_inputs` turns a :class:`~tsa_bench.store.RunData` into
+Contract: :func:`run_inputs` turns a :class:`~tsa_bench.rundata.RunData` into
 :class:`RunInputs`: undeclared loads forward-filled (leading gaps from the model's
 ``initial_load_g``), a missing heater voltage read as 0 V, isolated missing twist
 samples forward-filled (and never scored). :func:`missing_inputs` lists, as
@@ -108,9 +108,13 @@ def missing_inputs(runs: list[RunInputs], outputs: tuple[str, ...]) -> list[tupl
         elif np.ptp(r.turns[r.scored]) == 0 and np.ptp(r.volts) == 0 and np.ptp(r.load_g) == 0:
             out.append((f"{name}: no input changes (twist, heater and load are constant); nothing excites the model",
                         "diagnose a run that moves the motor, heats or changes the load"))
-    for o in outputs:
-        if not any(np.isfinite(r.output(o)).sum() >= 20 for r in runs):
-            other = [p for p in OUTPUTS if p != o]
-            out.append((f"{o} is not measured (all NaN) in every run; the judged model's {o} cannot be compared",
-                        f"judge the other output alone: --outputs {','.join(other)}"))
+    unmeasured = [o for o in outputs if not any(np.isfinite(r.output(o)).sum() >= 20 for r in runs)]
+    if len(unmeasured) > 1:   # no other output to judge alone: one reason, one remedy
+        out.append((f"{' and '.join(unmeasured)} are not measured (all NaN) in every run; nothing to compare the "
+                    "model with", "record or import a measured length or resistance (tsa-bench import --map "
+                    "length=COLUMN)"))
+    for o in unmeasured if len(unmeasured) == 1 else []:
+        other = [p for p in OUTPUTS if p != o]
+        out.append((f"{o} is not measured (all NaN) in every run; the judged model's {o} cannot be compared",
+                    f"judge the other output alone: --outputs {','.join(other)}"))
     return out

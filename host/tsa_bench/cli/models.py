@@ -76,7 +76,8 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
             validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
-    from tsa_bench.models.fitting import FitError, fit, fit_notes
+    from tsa_bench.models.fit_samples import FitError
+    from tsa_bench.models.fitting import fit, fit_notes
     from tsa_bench.models.saved import ModelFileError, save_model
 
     if not 1 <= levels <= 200:
@@ -112,7 +113,8 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
                    "(RUN itself is never changed; OUT.h5 is never overwritten).")
 def predict_cmd(model_file: str, run: str, out: str | None) -> None:
     """Print the metrics of MODEL_FILE on RUN; optionally write the prediction beside the measurement."""
-    from tsa_bench.models.fitting import FitError, evaluate
+    from tsa_bench.models.fit_samples import FitError
+    from tsa_bench.models.fitting import evaluate
     from tsa_bench.models.saved import ModelFileError, load_model_file
     from tsa_bench.store.derived import DerivedFileError, write_with_column
 
@@ -157,7 +159,7 @@ MAX_MANIPULATOR_SAMPLES = 1_000_000
 
 def _manipulator_config(path: str) -> dict[str, Any]:
     """The manipulator YAML, read with the hardened reader and checked key by key."""
-    from tsa_bench.documents import DocumentError, read_yaml
+    from tsa_bench.userfiles import DocumentError, read_yaml
 
     try:
         doc = read_yaml(path, what="manipulator file")

@@ -33,7 +33,8 @@ import numpy as np
 
 from tsa_bench.reproduce.agreement import (AGREE_FRACTION, effective_tolerance, fraction, judge as judge_at,
                                            stated_tolerance)
-from tsa_bench.reproduce.measures import MeasureError, compute, measure_unit
+from tsa_bench.reproduce.measures import MeasureError, measure_unit
+from tsa_bench.reproduce.quantities import compute
 from tsa_bench.reproduce.plan import CalibrationPlan
 from tsa_bench.reproduce.records import Record
 from tsa_bench.reproduce.roles import NEVER_COUNTED, ROLES, assign_roles
