@@ -68,10 +68,15 @@ def test_every_compared_row_states_its_gap_and_every_disagreement_its_reason(ful
         if r["verdict"] == "disagrees":
             assert r["reason"] and r["reason"] != "no reason named", r["id"]
     assert doc["summary"]["unexplained_disagreements"] == []
-    # after calibration most held-out measured quantities agree; the tables' coefficients, which a
-    # cubic or an over-parameterised model trades off against each other, mostly do not
+    # after a calibration that never read them, half the counted held-out measured quantities agree
+    # over seeds 0-4 (19 of 38; the bar was 1.4 agreements per disagreement while circular and vacuous
+    # rows were counted and plant extensions were chosen on held-out records); the tables'
+    # coefficients, which a cubic or an over-parameterised model trades off against each other,
+    # mostly do not
     quantities = doc["summary"]["held_out_by_kind"]["quantity"]
-    assert quantities["agrees"] > 1.4 * quantities["disagrees"]
+    coefficients = doc["summary"]["held_out_by_kind"]["coefficient"]
+    assert quantities["agrees"] >= quantities["disagrees"]
+    assert coefficients["agrees"] < coefficients["disagrees"]
     kinds = {r["kind"] for r in doc["rows"]
              if r["id"].startswith(("t3.1.3ply", "t3.2.s1", "t3.3.")) and r["verdict"] != "not simulated"}
     assert kinds == {"coefficient"}
