@@ -114,17 +114,25 @@ def watch(run_file: str, plain: bool, once: bool, interval_s: float, wait_s: flo
 
 @click.command()
 @click.argument("run_file", type=click.Path(dir_okay=False))
-@click.option("--csv", "as_csv", is_flag=True, required=True, help="Write CSV files (the only format so far).")
+@click.option("--csv", "as_csv", is_flag=True, help="Write CSV files with units in the headers.")
+@click.option("--documents", "as_documents", is_flag=True,
+              help="Write the run as Bluesky documents, JSON lines of [name, document] (needs the bluesky extra: "
+                   'pip install "tsa-bench[bluesky]"; docs/bluesky.md).')
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Directory for the CSV files (default: next to the run file).")
-def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
-    """Write RUN_FILE's samples, segments and events as CSV with units in the headers."""
+@click.option("--output", "out_file", type=click.Path(dir_okay=False, allow_dash=True), default="-", show_default=True,
+              help="--documents: the JSON-lines file to write (- for standard output).")
+def export(run_file: str, as_csv: bool, as_documents: bool, out_dir: str | None, out_file: str) -> None:
+    """Write RUN_FILE's samples, segments and events as CSV, or as Bluesky documents."""
     from tsa_bench.store import RunFileError
+
+    if as_csv == as_documents:
+        fail("choose one format: --csv or --documents")
+    if as_documents:
+        _export_documents(run_file, out_file)
+        return
     from tsa_bench.store.csv_export import export_csv
 
-    if not as_csv:
-        click.echo("error: choose a format: --csv", err=True)
-        sys.exit(EXIT_BAD_INPUT)
     try:
         for path in export_csv(run_file, out_dir):
             click.echo(f"wrote {path}")
@@ -132,3 +140,37 @@ def export(run_file: str, as_csv: bool, out_dir: str | None) -> None:
         fail(str(exc))
     except OSError as exc:
         fail(f"cannot write the CSV files ({exc.filename or out_dir}): {exc.strerror or exc}", EXIT_FAILED)
+
+
+def _export_documents(run_file: str, out_file: str) -> None:
+    """`export --documents`: JSON lines to a new file (never over an existing one) or stdout."""
+    import os
+    from pathlib import Path
+
+    from tsa_bench.store import RunFileError
+
+    try:
+        from tsa_bench.bluesky.export import write_jsonl
+    except ImportError as exc:
+        fail(f"--documents needs the bluesky extra ({exc.name} is not installed): pip install \"tsa-bench[bluesky]\"")
+    if out_file == "-":
+        try:
+            write_jsonl(run_file, sys.stdout)
+        except RunFileError as exc:
+            fail(str(exc))
+        return
+    path = Path(out_file)
+    if path.exists() or path.is_symlink():
+        fail(f"{path} already exists; choose another --output (nothing was written)")
+    tmp = path.with_name(f".{path.name}.partial")
+    try:
+        with open(tmp, "x", encoding="utf-8") as out:
+            n = write_jsonl(run_file, out)
+        os.replace(tmp, path)
+    except RunFileError as exc:
+        tmp.unlink(missing_ok=True)
+        fail(str(exc))
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        fail(f"cannot write {path}: {exc.strerror or exc}", EXIT_FAILED)
+    click.echo(f"wrote {path} ({n} documents)")

@@ -18,7 +18,7 @@ whose one-line message names the file and exactly what is wrong:
   :data:`MAX_ABS_VALUE` or infinite in a float column (NaN means "not measured" and is
   kept);
 * ``/segments`` or ``/events`` that are not 1-D tables with the contract's fields of
-  the right kinds, segment indices outside 0..:data:`MAX_SEGMENT_INDEX` (or -1); in the
+  the right kinds, segment indices outside 0 to :data:`MAX_SEGMENT_INDEX` (or -1); in the
   coded layout of format 1.2, a ``kind_names`` attribute that is not a JSON list of texts,
   a /segment_texts that is not a 1-D text dataset, or a code naming no kind or text;
 * damaged datasets or attributes that HDF5 cannot read.
@@ -287,7 +287,11 @@ def _coded_segments(f: _File) -> np.ndarray | None:
 
 
 def read_run(path: str | Path) -> RunData:
-    """Load and check one run file; raise RunFileError naming the file and the problem."""
+    """Load and check one run file (module contract); return it as a :class:`~tsa_bench.rundata.RunData`.
+
+    Raises :class:`RunFileError` whose one-line message names the file and the problem; the
+    file is opened read-only and never changed.
+    """
     p = Path(path)
     try:
         check_regular_file(p, "run file")
