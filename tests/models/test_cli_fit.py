@@ -130,7 +130,8 @@ def test_fit_at_one_load(three_load_run, tmp_path) -> None:
     assert load_model_file(one).options["load_g"] == 150
     res = CliRunner().invoke(main, ["predict", str(one), three_load_run])
     assert res.exit_code == 0 and f" {e_one['n']} " in res.output      # scored at its own load only
-    res = CliRunner().invoke(main, ["fit", "polynomial", three_load_run, "--load-g", "120", "--out", str(one)])
+    none = str(one.with_name("none.json"))   # (an existing model file is not replaced without --force)
+    res = CliRunner().invoke(main, ["fit", "polynomial", three_load_run, "--load-g", "120", "--out", none])
     assert res.exit_code != 0 and "no samples at a load of 120 g (loads: 100 g, 150 g, 200 g)" in res.output
-    res = CliRunner().invoke(main, ["fit", "self-sensing", three_load_run, "--load-g", "150", "--out", str(one)])
+    res = CliRunner().invoke(main, ["fit", "self-sensing", three_load_run, "--load-g", "150", "--out", none])
     assert res.exit_code != 0 and "--load-g applies to preisach and polynomial" in res.output

@@ -12,7 +12,8 @@ import time
 
 import click
 
-from tsa_bench.cli.exits import fail, unwritable_reason
+from tsa_bench.cli.exits import check_output_folder, fail, unwritable_reason
+from tsa_bench.cli.loading import FORCE
 
 
 #: what each role's count means, printed beside it
@@ -40,8 +41,9 @@ def _num(v: float | None) -> str:
 @click.option("--seed", type=int, default=0, show_default=True, help="First noise seed of the simulated runs.")
 @click.option("--seeds", "n_seeds", type=click.IntRange(min=1), default=5, show_default=True,
               help="Number of noise seeds (seed, seed+1, ...); a row agrees when at least 80 % of them agree.")
+@FORCE
 def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: str | None, plan_file: str | None,
-              chapter: int | None, seed: int, n_seeds: int) -> None:
+              chapter: int | None, seed: int, n_seeds: int, force: bool) -> None:
     """Run each thesis experiment on its simulated preset and print thesis vs simulated, gap and verdict.
 
     Each experiment runs once per noise seed. Verdicts: agrees (at least 80 % of the seeds
@@ -74,6 +76,7 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
     why = unwritable_reason(figures_dir) if figures_dir is not None else None
     if why:   # before the experiments run, not after them
         fail(f"{figures_dir}: cannot write the figures there ({why})")
+    check_output_folder(figures_dir, force)
     from tsa_bench.models.long_run_fits import one_blas_thread
 
     seeds = list(range(seed, seed + n_seeds))
@@ -86,8 +89,12 @@ def reproduce(quick: bool, as_json: bool, figures_dir: str | None, records_dir: 
     if figures_dir is not None:
         from tsa_bench.reproduce.figures import write_figures
 
+        from tsa_bench.outputs import OutputExists
+
         try:
             written = write_figures(records, rows, figures_dir)
+        except OutputExists as exc:
+            fail(str(exc))
         except OSError as exc:
             fail(f"{exc.filename or figures_dir}: cannot write the figure ({exc.strerror or exc})")
         for path in written:

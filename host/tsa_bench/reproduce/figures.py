@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from tsa_bench.outputs import save_figure
 from tsa_bench.reproduce.records import Record
 from tsa_bench.reproduce.table import Row, residual
 
@@ -64,7 +65,7 @@ def write_figures(records: list[Record], rows: list[Row], out_dir: str | Path) -
         ax.grid(axis="x", alpha=0.3)
         fig.tight_layout()
         path = out / f"chapter{chapter}.png"
-        fig.savefig(path, dpi=100)
+        save_figure(fig, path, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths
