@@ -60,24 +60,32 @@ def _no_segments_hint(run: Any) -> str:
 @click.option("--max-causes", type=int, default=3, show_default=True, help="Most effects named, one per iteration.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap resampling.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress lines on stderr.")
+@click.option("--catalogue", "catalogue_url", default=None, metavar="URL",
+              help="Catalogue the verdict is registered in, on each run's row (default: $TSA_BENCH_CATALOGUE, "
+                   "else catalogue.sqlite beside each run file; 'none': not registered).")
 @MAX_MEMORY
 @FORCE
 def diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
-             out_dir: str | None, json_path: str | None, max_causes: int, seed: int, quiet: bool, force: bool) -> None:
+             out_dir: str | None, json_path: str | None, max_causes: int, seed: int, quiet: bool,
+             catalogue_url: str | None, force: bool) -> None:
     """Judge the simulation on RUN.h5: a verdict (explained, named, unexplained, model_mismatch), the cause, the gain.
 
     A report folder that already holds files, or an existing --json file, is refused unless --force.
     """
     try:
-        _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, seed, quiet, force)
+        result = _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, seed, quiet, force)
     except KeyboardInterrupt:
         click.echo("diagnose: interrupted; nothing written", err=True)
         sys.exit(EXIT_ABORTED)
+    from tsa_bench.cli.catalogue import register_verdict
+
+    register_verdict(catalogue_url, list(run_files), result.verdict, result.cause or result.summary)
 
 
 def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
               out_dir: str | None, json_path: str | None, max_causes: int, seed: int, quiet: bool,
-              force: bool) -> None:
+              force: bool):
+    """The diagnose result, once its report is written (exits on any problem)."""
     from tsa_bench.store import RunFileError, read_run
 
     if max_causes < 0:
@@ -154,3 +162,4 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
     for p in paths.values():
         click.echo(f"wrote {p}")
     click.echo(f"wrote {jpath}")
+    return result
