@@ -47,15 +47,19 @@ import numpy as np
 
 from tsa_bench.analysis.calibrate import calibrate
 from tsa_bench.analysis.context import UNITS, Context, Progress
-from tsa_bench.analysis.families import FAMILIES, FAMILY_OF
-from tsa_bench.analysis.finish import Finisher
+from tsa_bench.analysis.finish import Finisher, declared_settling
 from tsa_bench.analysis.holdout import Holdout, split
 from tsa_bench.analysis.inputs import OUTPUTS, missing_inputs, run_inputs
 from tsa_bench.analysis.modelspec import baseline_specs, get_value
-from tsa_bench.analysis.naming import induced, iteration
+from tsa_bench.analysis.naming import induced
 from tsa_bench.analysis.noise import noise_model
 from tsa_bench.analysis.quasistatic import hold_points, staged_start
-from tsa_bench.analysis.result import Candidate, DiagnoseResult
+from tsa_bench.analysis.result import DiagnoseResult
+from tsa_bench.analysis.search import SearchResult, search
+
+
+#: stages of a diagnosis, for the progress lines ("[stage 5/6 search] iteration 2 (at most 14): ...")
+STAGES = 6
 
 
 def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *, max_causes: int = 3,
@@ -65,9 +69,28 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
 
     Raises :class:`~tsa_bench.analysis.holdout.HoldoutError` for a bad ``holdout`` and
     ValueError for bad ``outputs``; every other problem of the data ends in a verdict.
+    BLAS runs on one thread: the fits' matrices are small, and on a busy machine the
+    threads' spinning costs more CPU than they save.
     """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(runs, model_plant_cfg, holdout, max_causes=max_causes, seed=seed, progress=progress,
+                         outputs=outputs, model_path=model_path)
+
+
+def _diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None, *, max_causes: int, seed: int,
+              progress: Progress | None, outputs: tuple[str, ...] | None, model_path: str | Path | None
+              ) -> DiagnoseResult:
     t0 = time.perf_counter()
-    say = progress or (lambda msg: None)
+    emit = progress or (lambda msg: None)
+    where = [f"1/{STAGES} inputs"]
+
+    def stage(k: int, name: str) -> None:
+        where[0] = f"{k}/{STAGES} {name}"
+
+    def say(msg: str) -> None:
+        emit(f"[stage {where[0]}] {msg}")
     outputs = tuple(outputs or OUTPUTS)
     if not outputs or any(o not in OUTPUTS for o in outputs):
         raise ValueError(f"outputs must be among {', '.join(OUTPUTS)}, got {', '.join(outputs) or 'none'}")
@@ -85,6 +108,7 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
                      "assumed")
     if hold.one_sided:
         notes.append("excitation on one side of the holdout only: " + ", ".join(hold.one_sided))
+    say("estimating the sensor noise and choosing the held-out blocks")
     noise = {o: noise_model(inputs, o) for o in outputs}
     bad = [(f"{o}: too few samples to estimate the sensor noise", "record longer holds") for o in outputs
            if not np.isfinite(noise[o].rms)]
@@ -102,6 +126,7 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
         return finish.mismatch_only(bad, hold)
     ctx = Context(inputs, outputs, noise, hold, seed)
 
+    stage(2, "calibration")
     say("calibrating the judged model: geometry from the holds")
     pts = hold_points(inputs)
     start = staged_start(model, pts, noise["length"].sigma) if "length" in outputs else {}
@@ -114,62 +139,31 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
         alt = calibrate(ctx.problem, model, specs, centre=centre, max_nfev=60)
         if alt.cost < fit0.cost:
             fit0 = alt
+    stage(3, "residual tests")
     say("testing the judged model's residuals")
     s0 = ctx.scores(fit0.cfg)
     r0 = get_value(fit0.cfg, "geometry.resistance_ohm")
-    tests0 = ctx.residual_tests(s0.sims, r0)
+    declared = declared_settling(model, outputs)     # the model's own hold-to-hold offsets are not structure
+    tests0 = ctx.residual_tests(s0.sims, r0, {o: ctx.component(s0.sims, o) for o in declared})
     structured = [o for o in outputs if tests0[o]["structured"]]
     ctx.source = set(structured)
     if len(structured) > 1:
+        stage(4, "blame")
         ctx.induced = induced(ctx, fit0, structured, centre, say)
         for o in sorted(ctx.induced):
             notes.append(f"the {o} residual is structured only when the model must fit both outputs: calibrated on "
                          f"the {o} alone it is noise, so its structure comes from the other output's misfit and "
                          f"effects acting on the {o} alone are not candidates")
-    current, cur_scores = fit0, s0
-    _s0_first = s0
-    chosen: list[dict] = []
-    iterations: list[dict] = []
-    candidates: dict[str, Candidate] = {}
     if any(t["structured"] for t in tests0.values()):
-        it, redone = 1, False
-        while it <= max_causes:
-            ev, pick, better = iteration(ctx, current, cur_scores, [FAMILY_OF[c["form"]] for c in chosen], centre,
-                                          it, say)
-            iterations.append(ev)
-            for f, s in ev["screened"].items():
-                candidates[f] = Candidate(f, "effect", s["score"], {"family": FAMILY_OF[f],
-                                                                    "form": FAMILIES[FAMILY_OF[f]][f],
-                                                                    "iteration": it, "screen": s,
-                                                                    **({"refit": ev["refit"][f]} if f in ev["refit"]
-                                                                       else {})})
-            if better is not None and not redone:
-                current, cur_scores = better
-                if not chosen:
-                    fit0, s0 = better
-                notes.append(f"iteration {it}: re-calibrated the model's own parameters (a better optimum)")
-                redone = True
-                continue
-            redone = False
-            if pick is None:
-                notes.append(f"iteration {it}: no candidate passed the naming gate")
-                break
-            picked, fit, s_new, c, form_conf, select = pick
-            for k, form in enumerate(picked):
-                chosen.append({"form": form, "gain": c.relative, "form_conf": form_conf if k == 0 else 1.0,
-                               "select": select, "before": (current, cur_scores)})
-                notes.append(f"iteration {it}: {FAMILY_OF[form]} ({FAMILIES[FAMILY_OF[form]][form]}) passed"
-                             + (f", held-out improvement {c.improvement['pooled']:.2f} noise variances" if k == 0
-                                else " as its companion"))
-            current, cur_scores = fit, s_new
-            it += 1
+        stage(5, "search")
+        found = search(ctx, fit0, s0, centre, max_causes, say, notes)
     else:
         notes.append("the judged model's residuals are consistent with the noise model: no candidate screened")
-    if chosen and chosen[0]["before"][0] is not fit0:
-        fit0, s0 = chosen[0]["before"]
-    if s0 is not _s0_first:
-        tests0 = ctx.residual_tests(s0.sims, get_value(fit0.cfg, "geometry.resistance_ohm"))
-    return finish.complete(ctx, fit0, s0, tests0, current, cur_scores, chosen, iterations, candidates, hold, centre,
-                           say)
+        found = SearchResult(fit0, s0, fit0, s0, [], [], [], {})
+    if found.s0 is not s0:
+        tests0 = ctx.residual_tests(found.s0.sims, get_value(found.fit0.cfg, "geometry.resistance_ohm"),
+                                    {o: ctx.component(found.s0.sims, o) for o in declared})
+    stage(6, "final checks")
+    return finish.complete(ctx, found, tests0, hold, centre, say)
 
 
