@@ -91,7 +91,8 @@ def test_end_to_end_on_a_small_simulated_run(tmp_path, monkeypatch):
     assert data["verdict"] == "named" and data["causes"] == ["resistance_transient_decay"], data["summary"]
     assert res.stdout.startswith("VERDICT: named: resistance_transient_decay")
     assert f"wrote {out / 'report.txt'}" in res.stdout
-    assert "diagnose: calibrating the judged model" in res.stderr and "diagnose:" not in res.stdout
+    assert "diagnose: [stage 2/6 calibration] calibrating the judged model" in res.stderr
+    assert "diagnose: [stage 6/6 final checks]" in res.stderr and "diagnose:" not in res.stdout
     assert data["provenance"]["inputs"][0]["sha256"] and data["provenance"]["model"]["path"].endswith(
         "sim-baseline.yaml")
 

@@ -125,7 +125,9 @@ class Context:
         groups, turns, load, t, train, held = self._holds()
         res = self.residual(sims, o) if res is None else res
         r0 = float(np.nanmedian(np.concatenate([r.resistance for r in self.inputs])))
-        return variance_component(o, res, train, held, groups, turns, load, t, self.noise[o], RunBases(self.inputs, r0))
+        level = self.inputs[0].length if len(self.inputs) == 1 else np.concatenate([r.length for r in self.inputs])
+        return variance_component(o, res, train, held, groups, turns, load, t, self.noise[o], RunBases(self.inputs, r0),
+                                  level)
 
     def residual_tests(self, sims: list[dict], r0: float, settle: Mapping[str, Component] | None = None) -> dict:
         """Structure of each output's residual; for an output with a hold-to-hold component in ``settle``

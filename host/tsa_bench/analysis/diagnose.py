@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.analysis import validation
 from tsa_bench.analysis.calibrate import calibrate
 from tsa_bench.analysis.context import UNITS, Context, Progress
 from tsa_bench.analysis.finish import Finisher, declared_settling
@@ -60,23 +61,34 @@ from tsa_bench.analysis.search import SearchResult, search
 
 #: stages of a diagnosis, for the progress lines ("[stage 5/6 search] iteration 2 (at most 14): ...")
 STAGES = 6
+#: most causes in the model at once (forward selection stops there; a demoted one frees its place)
+MAX_CAUSES = 6
 
 
-def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *, max_causes: int = 3,
-             seed: int = 0, progress: Progress | None = None, outputs: tuple[str, ...] | None = None,
-             model_path: str | Path | None = None) -> DiagnoseResult:
+def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *,
+             max_causes: int = MAX_CAUSES, seed: int = 0, progress: Progress | None = None,
+             outputs: tuple[str, ...] | None = None, model_path: str | Path | None = None,
+             validate: list | None = None) -> DiagnoseResult:
     """Judge ``model_plant_cfg`` against ``runs`` (RunData); see the module docstring.
 
+    ``validate``: runs scored with the judged and the extended model at the end and
+    nothing else (prospective validation, :func:`tsa_bench.analysis.validation.validate`).
     Raises :class:`~tsa_bench.analysis.holdout.HoldoutError` for a bad ``holdout`` and
-    ValueError for bad ``outputs``; every other problem of the data ends in a verdict.
-    BLAS runs on one thread: the fits' matrices are small, and on a busy machine the
-    threads' spinning costs more CPU than they save.
+    ValueError for bad ``outputs`` or a validation run lacking an input; every other
+    problem of the data ends in a verdict. BLAS runs on one thread: the fits' matrices
+    are small, and on a busy machine the threads' spinning costs more CPU than they save.
     """
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
-        return _diagnose(runs, model_plant_cfg, holdout, max_causes=max_causes, seed=seed, progress=progress,
-                         outputs=outputs, model_path=model_path)
+        result = _diagnose(runs, model_plant_cfg, holdout, max_causes=max_causes, seed=seed, progress=progress,
+                           outputs=outputs, model_path=model_path)
+    if validate and result.model_plant:
+        if progress:
+            progress(f"[stage {STAGES}/{STAGES} final checks] prospective validation on {len(validate)} run(s)")
+        result.validation = validation.validate(result.model_plant, result.judged_plant, validate, result.outputs,
+                                                seed)
+    return result
 
 
 def _diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None, *, max_causes: int, seed: int,

@@ -120,13 +120,26 @@ class Finisher:
         settle = {o: ctx.component(sims, o) for o in declared}
         tests = ctx.residual_tests(sims, r0, settle)
         named: dict[str, Component] = {}
+        self.tested: dict[str, Component] = dict(settle)
         for o in ctx.outputs:
             if o in settle or not tests[o].get("structured"):
                 continue
             say(f"testing the {o} residual for hold-to-hold offsets (a variance component)")
-            comp = ctx.component(sims, o)
-            if comp.named:
+            comp = self.tested[o] = ctx.component(sims, o)
+            follows = [f["signal"] for f in tests[o].get("follows", [])]
+            if follows:      # a residual that follows an input is (also) a deterministic misfit: not settling
+                comp.named = False
+                comp.follows.append("the residual follows " + ", ".join(follows))
+            if not comp.named:
+                continue
+            # named only if removing the offsets removes most of the structure (as a cause must)
+            after = ctx.residual_tests(sims, r0, {o: comp})[o]
+            b, a = tests[o].get("structured_rms") or 0.0, after.get("structured_rms") or 0.0
+            if b > 0 and 1.0 - (a * a) / (b * b) >= vd.SHARE_MIN:
                 named[o] = comp
+            else:
+                comp.named = False
+                comp.follows.append("(removing the offsets leaves most of the structure)")
         if named:
             tests = ctx.residual_tests(sims, r0, {**settle, **named})
         return tests, settle, named
@@ -136,7 +149,7 @@ class Finisher:
         """Causes whose output keeps most of its structure leave the model (re-calibrated without them)."""
         out, keep = [], []
         for c in found.chosen:
-            main = c.own.main_output() if c.own else ctx.outputs[0]
+            main = c.main_output(ctx.outputs)
             share = vd.share_removed(states[main])
             if share < vd.SHARE_MIN:
                 out.append({"form": c.form, "family": c.family, "explained_share": share,
@@ -156,7 +169,7 @@ class Finisher:
 
     def _cause(self, ctx: Context, c: Chosen, states: dict, named_families: set[str], values: dict) -> NamedCause:
         own = c.own
-        main = own.main_output() if own else ctx.outputs[0]
+        main = c.main_output(ctx.outputs)
         share = vd.share_removed(states[main])
         cause = NamedCause(c.family, FAMILIES[c.family][c.form], c.form, main,
                            own.p_above[main] if own else 0.0, c.form_conf,
@@ -237,7 +250,7 @@ class Finisher:
             unexplained=unexplained, mismatch=mism, partial=partial,
             noise={o: ctx.noise[o].to_json() for o in ctx.outputs}, calibration=calibration,
             holdout=hold.to_json(), iterations=found.iterations, provenance=self._prov(hold), outputs=ctx.outputs,
-            model_plant=plant, components=[c.to_json() for c in {**settle, **components}.values()])
+            model_plant=plant, judged_plant=plain(fit0.cfg), components=[c.to_json() for c in self.tested.values()])
 
     def _gains(self, ctx: Context, found: SearchResult, s_file, comps: dict[str, Component]) -> list[Gain]:
         before, after = rmse(found.s0, ctx.sigma), rmse(s_file, ctx.sigma)

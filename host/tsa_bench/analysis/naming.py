@@ -215,7 +215,10 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     residual = stacked(small.residuals(current.cfg), ctx.outputs)
     scale = run_scale(ctx, current.cfg)
     share = propagated_share(ctx, cur_scores, current.cfg)
-    forms = [f for f in eligible(ctx, current.cfg, named_families, share >= PROPAGATED) if f not in exclude]
+    # the length error shows in the resistance through dR/dX, unless the length's own structure is
+    # only the resistance misfit showing through the joint fit (then the resistance is the source)
+    propagated = share >= PROPAGATED and "length" not in ctx.induced
+    forms = [f for f in eligible(ctx, current.cfg, named_families, propagated) if f not in exclude]
     say(f"iteration {it}: screening {len(forms)} candidate forms")
     jac = jacobian(small, current.cfg, residual)
     screened = {f: screen(small, current.cfg, f, residual, residual, scale, jac) for f in forms}

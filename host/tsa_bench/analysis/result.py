@@ -130,6 +130,7 @@ class DiagnoseResult:
     provenance: dict = field(default_factory=dict)
     outputs: tuple[str, ...] = ("length", "resistance")
     model_plant: dict = field(default_factory=dict)     # the extended model's plant (what --write-model writes)
+    judged_plant: dict = field(default_factory=dict)    # the judged model calibrated on the training part
     components: list[dict] = field(default_factory=list)   # hold-to-hold variance components fitted
     validation: list[dict] = field(default_factory=list)   # prospective validation (set by the caller)
 

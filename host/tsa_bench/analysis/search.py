@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from tsa_bench.analysis.calibrate import Fit, calibrate
 from tsa_bench.analysis.context import FLOOR, REFIT_NFEV, Context, Progress
-from tsa_bench.analysis.families import FAMILIES, FAMILY_OF
+from tsa_bench.analysis.families import FAMILIES, FAMILY_OF, OUTPUT_OF
 from tsa_bench.analysis.modelspec import baseline_specs, switch
 from tsa_bench.analysis.naming import iteration
 from tsa_bench.analysis.result import Candidate
@@ -46,6 +46,14 @@ class Chosen:
     @property
     def family(self) -> str:
         return FAMILY_OF[self.form]
+
+    def main_output(self, outputs: tuple[str, ...]) -> str:
+        """The output the cause is judged on: the one its family acts on when its own part is
+        significant there, else the one where it is most clearly so."""
+        acts = OUTPUT_OF[self.family]
+        if self.own is None:
+            return acts if acts in outputs else outputs[0]
+        return acts if acts in outputs and self.own.lower.get(acts, -1.0) > 0 else self.own.main_output()
 
 
 @dataclass
@@ -92,7 +100,7 @@ def eliminate(ctx: Context, current: Fit, scores: Scores, chosen: list[Chosen], 
     if not weak:
         return current, scores, chosen, None
     w = min(weak, key=lambda c: c.own.improvement["pooled"] if c.own else 0.0)
-    main = w.own.main_output() if w.own else "pooled"
+    main = w.main_output(ctx.outputs)
     lo, hi = w.own.ci95[main] if w.own else (0.0, 0.0)
     demoted = {"form": w.form, "family": w.family, "iteration": w.iteration,
                "own_improvement_noise_var": w.own.improvement["pooled"] if w.own else 0.0,

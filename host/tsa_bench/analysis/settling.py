@@ -17,8 +17,9 @@ boundary mixture ``chi2_0 / 2 + chi2_1 / 2``. The component is **named** when p 
 interval is the profile-likelihood one. Offsets that follow a signal from hold to hold (the
 twist, the direction, the load, time, travel, the measured length, the heater: weighted
 F-test over the holds) or that change smoothly from one hold to the next (lag-1 correlation of
-consecutive offsets significantly positive) are a deterministic misfit, not settling, and are
-not named. :func:`conditional` removes each hold's predicted
+consecutive offsets significantly positive) or that repeat where the state repeats (the
+offsets of holds nearest in twist, load and measured length correlated, either sign) are a deterministic
+misfit, not settling, and are not named. :func:`conditional` removes each hold's predicted
 offset (the shrunken deviation of its mean from the fixed part) from every sample, so the
 structure test judges what is left; the fixed part stays in the residual, so a misfit
 that follows the twist or the load is still seen as structure.
@@ -40,11 +41,15 @@ from tsa_bench.analysis.noise import Noise
 ALPHA = 0.01
 MIN_SAMPLES = 5        # a hold with fewer training samples is left out of the estimate
 MIN_HOLDS = 8          # fewer holds: not testable
-#: consecutive holds' offsets correlated beyond this many standard errors (one-sided 5 %) change
+#: consecutive holds' offsets correlated beyond this many standard errors (one-sided 1 %) change
 #: smoothly from hold to hold: a deterministic misfit, not independent draws
-SERIAL_Z = 1.645
-#: signals that change from hold to hold (the within-hold ones, speed or time since the stop, do not)
-HOLD_SIGNALS = ("turns", "direction", "load", "time", "travel", "length", "heater_power")
+SERIAL_Z = 2.33
+#: offsets of holds nearest in state correlated (either sign: up and down at one twist may differ by
+#: a hysteresis misfit) beyond this many standard errors (two-sided 1 %) repeat with the state
+REPEAT_Z = 2.58
+#: signals that change from hold to hold (the within-hold ones, speed or time since the stop, do not);
+#: the motor angle stands still in a hold, so a once-per-turn error is a hold offset that follows it
+HOLD_SIGNALS = ("turns", "motor_angle", "direction", "load", "time", "travel", "length", "heater_power")
 #: the library effect that models the component, and its parameter, per output
 EFFECT = {"length": ("length_settling", "hold_sd_mm"), "resistance": ("resistance_settling", "hold_sd_ohm")}
 
@@ -62,6 +67,7 @@ class Component:
     named: bool = False
     follows: list[str] = field(default_factory=list)   # signals the hold offsets follow (then not settling)
     serial: float = 0.0               # lag-1 correlation of consecutive holds' offsets
+    repeat: float = 0.0               # correlation of offsets of holds nearest in state
     beta: np.ndarray | None = None
     scale: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None    # covariate centre, spread, columns used
 
@@ -70,7 +76,8 @@ class Component:
         return {"output": self.output, "effect": effect, "parameter": param, "testable": self.testable,
                 "sd": self.tau, "sd_ci95": list(self.ci95), "likelihood_ratio": self.lr, "p": self.p,
                 "n_holds": self.n_holds, "heldout_sd": self.heldout_tau, "named": self.named,
-                "offsets_follow": self.follows, "serial_correlation": self.serial}
+                "offsets_follow": self.follows, "serial_correlation": self.serial,
+                "nearest_state_correlation": self.repeat}
 
 
 def hold_groups(r: RunInputs) -> np.ndarray:
@@ -111,6 +118,19 @@ def _loglik(tau2: float, m: np.ndarray, x: np.ndarray, s2: np.ndarray, beta: np.
     return float(-0.5 * np.sum(np.log(v) + w * r * r)), beta
 
 
+def _neighbours(z: np.ndarray, feats: np.ndarray) -> float:
+    """Correlation of each hold's standardised offset with that of the hold nearest to it in state
+    (standardised features): random draws do not repeat, a function of the state does."""
+    if len(z) < MIN_HOLDS:
+        return 0.0
+    f = (feats - feats.mean(axis=0)) / np.where(feats.std(axis=0) > 1e-12, feats.std(axis=0), 1.0)
+    d = ((f[:, None, :] - f[None, :, :]) ** 2).sum(axis=2)
+    np.fill_diagonal(d, np.inf)
+    nn = np.argmin(d, axis=1)
+    a, b = z - z.mean(), z[nn] - z.mean()
+    return float(a @ b / np.sqrt((a @ a) * (b @ b))) if a @ a > 0 and b @ b > 0 else 0.0
+
+
 def _serial(z: np.ndarray) -> float:
     """Lag-1 correlation of consecutive holds' standardised offsets (0 for independent draws)."""
     z = z - z.mean()
@@ -119,7 +139,8 @@ def _serial(z: np.ndarray) -> float:
 
 def _hold_follows(tr: "_Means", r: np.ndarray, var: np.ndarray, p: int, bases: Mapping[str, np.ndarray],
                   mask: np.ndarray, groups: np.ndarray) -> list[str]:
-    """Signals the holds' offsets follow (weighted F-test over the holds at :data:`ALPHA`): offsets that
+    """Signals the holds' offsets follow (weighted F-test over the holds at :data:`ALPHA`, Bonferroni
+    over the signals): offsets that
     follow the twist, the direction, the load ... are a deterministic misfit, not settling."""
     out = []
     w = 1.0 / var
@@ -142,14 +163,15 @@ def _hold_follows(tr: "_Means", r: np.ndarray, var: np.ndarray, p: int, bases: M
         coef = np.linalg.lstsq(xw, yw, rcond=None)[0]
         ess = float(np.sum((xw @ coef) ** 2))
         rss = float(yw @ yw) - ess
-        if rss > 0 and float(fdist.sf((ess / k) / (rss / dof), k, dof)) < ALPHA:
+        if rss > 0 and float(fdist.sf((ess / k) / (rss / dof), k, dof)) < ALPHA / len(HOLD_SIGNALS):
             out.append(name)
     return out
 
 
 def variance_component(output: str, res: np.ndarray, train: np.ndarray, heldout: np.ndarray, groups: np.ndarray,
                        turns: np.ndarray, load: np.ndarray, t: np.ndarray, noise: Noise,
-                       bases: Mapping[str, np.ndarray] | None = None) -> Component:
+                       bases: Mapping[str, np.ndarray] | None = None, level: np.ndarray | None = None
+                       ) -> Component:
     """Fit and test the hold-to-hold variance component of ``res`` (module docstring). ``train`` and
     ``heldout`` mask the usable samples of each side; ``groups`` from :func:`hold_groups` (distinct
     across runs); ``bases`` (:class:`tsa_bench.analysis.signals.RunBases`) the signals whose hold means
@@ -204,6 +226,13 @@ def variance_component(output: str, res: np.ndarray, train: np.ndarray, heldout:
     comp.serial = _serial(z)
     if comp.serial * np.sqrt(len(z)) > SERIAL_Z:
         comp.follows.append("hold order")
+    if level is not None:
+        lv = np.where(np.isfinite(level), level, np.nanmean(level) if np.isfinite(level).any() else 0.0)
+        held = _Means(lv, ok & (train | heldout), groups, lv[:, None])
+        held.keep(held.n >= MIN_SAMPLES)
+        comp.repeat = _neighbours(z, np.column_stack([both.x[:, 0], both.x[:, 2], held.m]))
+        if abs(comp.repeat) * np.sqrt(len(z)) > REPEAT_Z:
+            comp.follows.append("the hold's state (holds alike in twist, load and length have alike offsets)")
     comp.named = bool(p < ALPHA and comp.tau >= noise.floor and not comp.follows)
     ho = _Means(res, ok & heldout, groups, cov)
     ho.keep(ho.n >= MIN_SAMPLES)
