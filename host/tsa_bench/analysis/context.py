@@ -27,7 +27,7 @@ from tsa_bench.analysis.noise import RELEVANT, Noise
 from tsa_bench.analysis.replay import ReplayCache, replay_samples
 from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
 from tsa_bench.analysis.settling import Component, conditional, hold_groups, variance_component
-from tsa_bench.analysis.signals import RunBases
+from tsa_bench.analysis.signals import RunBases, last_direction
 from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
 
 #: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
@@ -117,17 +117,18 @@ class Context:
             cat = np.concatenate
             self._hold_arrays = (cat(groups), cat([r.turns for r in self.inputs]), cat([r.load_g for r in self.inputs]),
                                  cat(ts), cat([r.scored & ~r.heldout for r in self.inputs]),
-                                 cat([r.scored & r.heldout for r in self.inputs]))
+                                 cat([r.scored & r.heldout for r in self.inputs]),
+                                 cat([last_direction(r)[:, 0] for r in self.inputs]))
         return self._hold_arrays
 
     def component(self, sims: list[dict], o: str, res: np.ndarray | None = None) -> Component:
         """The hold-to-hold variance component of the residual of ``o`` (:mod:`tsa_bench.analysis.settling`)."""
-        groups, turns, load, t, train, held = self._holds()
+        groups, turns, load, t, train, held, direction = self._holds()
         res = self.residual(sims, o) if res is None else res
         r0 = float(np.nanmedian(np.concatenate([r.resistance for r in self.inputs])))
         level = self.inputs[0].length if len(self.inputs) == 1 else np.concatenate([r.length for r in self.inputs])
         return variance_component(o, res, train, held, groups, turns, load, t, self.noise[o], RunBases(self.inputs, r0),
-                                  level)
+                                  level, direction)
 
     def residual_tests(self, sims: list[dict], r0: float, settle: Mapping[str, Component] | None = None) -> dict:
         """Structure of each output's residual; for an output with a hold-to-hold component in ``settle``
@@ -137,9 +138,11 @@ class Context:
         for o in self.outputs:
             res = self.residual(sims, o)
             comp = (settle or {}).get(o)
+            if comp is not None and comp.follows:     # offsets that follow something are a misfit: left in
+                comp = None
             if comp is not None:
-                groups, turns, load, t, _, _ = self._holds()
-                res = conditional(comp, res, groups, turns, load, t, self.noise[o])
+                groups, turns, load, t, _, _, direction = self._holds()
+                res = conditional(comp, res, groups, turns, load, t, self.noise[o], direction)
             out[o] = residual_structure(res, self.noise[o], self.rate, bases, self.moving)
             if comp is not None:
                 out[o]["hold_offsets_removed"] = comp.tau

@@ -9,8 +9,8 @@ the next one (the library's ``length_settling`` and ``resistance_settling``).
 (measured minus model) and models the training mean of each hold, ``m_i`` over ``n_i``
 samples, as ``x_i b + u_i + e_i``: ``u_i ~ N(0, tau^2)`` the offsets, ``e_i`` the noise's
 share (variance ``k sigma^2 / n_i``, ``k`` the noise model's inflation for correlated
-noise) and ``x_i b`` a smooth fixed part (the hold's twist, its square, load and time:
-what a deterministic misfit would leave). ``tau^2`` by maximum likelihood with ``b``
+noise) and ``x_i b`` a smooth fixed part (the hold's twist, its square, load, time, the direction
+of the last move and its product with the twist: what a deterministic misfit would leave). ``tau^2`` by maximum likelihood with ``b``
 profiled out; the likelihood-ratio statistic against ``tau = 0`` is referred to the
 boundary mixture ``chi2_0 / 2 + chi2_1 / 2``. The component is **named** when p <
 :data:`ALPHA` and ``tau`` is at least the relevance floor (half the noise RMS); its 95 %
@@ -18,11 +18,11 @@ interval is the profile-likelihood one. Offsets that follow a signal from hold t
 twist, the direction, the load, time, travel, the measured length, the heater: weighted
 F-test over the holds) or that change smoothly from one hold to the next (lag-1 correlation of
 consecutive offsets significantly positive) or that repeat where the state repeats (the
-offsets of holds nearest in twist, load and measured length correlated, either sign) are a deterministic
-misfit, not settling, and are not named. :func:`conditional` removes each hold's predicted
-offset (the shrunken deviation of its mean from the fixed part) from every sample, so the
-structure test judges what is left; the fixed part stays in the residual, so a misfit
-that follows the twist or the load is still seen as structure.
+offsets of holds nearest in twist, load and measured length correlated, either sign) are a
+deterministic misfit, not settling, and are not named. :func:`conditional` removes each hold's predicted
+offset (its mean's deviation from the weighted mean of all holds, shrunk by ``tau^2 /
+(tau^2 + k sigma^2 / n_i)``) from every sample of the hold; it is applied only to a component
+whose offsets follow nothing (a misfit is never hidden as settling).
 """
 
 from __future__ import annotations
@@ -88,8 +88,9 @@ def hold_groups(r: RunInputs) -> np.ndarray:
     return np.cumsum(new)
 
 
-def _design(turns: np.ndarray, load: np.ndarray, t: np.ndarray) -> np.ndarray:
-    return np.column_stack([turns, turns ** 2, load, t])
+def _design(turns: np.ndarray, load: np.ndarray, t: np.ndarray, direction: np.ndarray | None) -> np.ndarray:
+    d = np.zeros_like(turns) if direction is None else direction
+    return np.column_stack([turns, turns ** 2, load, t, d, d * turns])
 
 
 class _Means:
@@ -170,13 +171,13 @@ def _hold_follows(tr: "_Means", r: np.ndarray, var: np.ndarray, p: int, bases: M
 
 def variance_component(output: str, res: np.ndarray, train: np.ndarray, heldout: np.ndarray, groups: np.ndarray,
                        turns: np.ndarray, load: np.ndarray, t: np.ndarray, noise: Noise,
-                       bases: Mapping[str, np.ndarray] | None = None, level: np.ndarray | None = None
-                       ) -> Component:
+                       bases: Mapping[str, np.ndarray] | None = None, level: np.ndarray | None = None,
+                       direction: np.ndarray | None = None) -> Component:
     """Fit and test the hold-to-hold variance component of ``res`` (module docstring). ``train`` and
     ``heldout`` mask the usable samples of each side; ``groups`` from :func:`hold_groups` (distinct
     across runs); ``bases`` (:class:`tsa_bench.analysis.signals.RunBases`) the signals whose hold means
     the offsets must not follow for the component to be named."""
-    cov = _design(turns, load, t)
+    cov = _design(turns, load, t, direction)
     ok = np.isfinite(res) & np.all(np.isfinite(cov), axis=1)
     tr = _Means(res, ok & train, groups, cov)
     tr.keep(tr.n >= MIN_SAMPLES)
@@ -248,16 +249,17 @@ def _fixed(comp: Component, xm: np.ndarray) -> np.ndarray:
 
 
 def conditional(comp: Component, res: np.ndarray, groups: np.ndarray, turns: np.ndarray, load: np.ndarray,
-                t: np.ndarray, noise: Noise) -> np.ndarray:
+                t: np.ndarray, noise: Noise, direction: np.ndarray | None = None) -> np.ndarray:
     """``res`` less each hold's predicted offset (every finite sample; see the module docstring)."""
     if not comp.testable or comp.tau <= 0 or comp.beta is None:
         return res
-    cov = _design(turns, load, t)
+    cov = _design(turns, load, t, direction)
     ok = np.isfinite(res) & np.all(np.isfinite(cov), axis=1)
     allm = _Means(res, ok, groups, cov)
     k = max(noise.inflation, (1 + noise.phi) / max(1 - noise.phi, 1e-3))
-    shrink = comp.tau ** 2 / (comp.tau ** 2 + k * noise.rms ** 2 / allm.n)
-    offset = shrink * (allm.m - _fixed(comp, allm.x))
+    var = comp.tau ** 2 + k * noise.rms ** 2 / allm.n
+    centre = float(np.sum(allm.m / var) / np.sum(1.0 / var))
+    offset = comp.tau ** 2 / var * (allm.m - centre)
     out = res.copy()
     pos = np.searchsorted(allm.keys, groups[ok])
     out[ok] -= offset[pos]

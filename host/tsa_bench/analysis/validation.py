@@ -10,7 +10,8 @@ same split, noise model, resampling units and arithmetic as
 comes back bit for bit from the written file). :func:`validate` scores the judged and the
 final model of a diagnosis on runs it never touched (neither calibration nor selection
 saw them): RMSE over the whole run with a block-bootstrap 95 % interval (units cut at
-segment boundaries), as a multiple of that run's own noise RMS, and the run's mean
+segment boundaries), as a multiple of that run's own noise RMS, the RMSE over the part of
+it a diagnosis would hold out (comparable with the held-out figure of the diagnosed run), and the run's mean
 residual (a constant offset, e.g. a contact that re-seated between runs) with its
 interval, beside the RMSE once that offset is removed.
 """
@@ -26,7 +27,7 @@ from tsa_bench.analysis.holdout import split, units
 from tsa_bench.analysis.inputs import OUTPUTS, RunInputs, missing_inputs, run_inputs
 from tsa_bench.analysis.noise import noise_model
 from tsa_bench.analysis.replay import replay
-from tsa_bench.analysis.scoring import Scores, all_units, rmse, rmse_intervals, unit_scores
+from tsa_bench.analysis.scoring import all_units, rmse, rmse_intervals, unit_scores
 
 N_BOOT = 1000
 
@@ -79,7 +80,7 @@ def _whole(cfg: Mapping[str, Any], inputs: list[RunInputs], sigma: Mapping[str, 
         boot = np.nanmean(means[pick], axis=1)
         out[o] = {"rmse": rmse(s, sigma)[o], "rmse_ci95": ci[o].get("a"), "offset": offset,
                   "offset_ci95": (float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))),
-                  "rmse_offset_removed": float(np.sqrt(np.mean((d - offset) ** 2))) * 1.0 if len(d) else float("nan")}
+                  "rmse_offset_removed": float(np.sqrt(np.mean((d - offset) ** 2))) if len(d) else float("nan")}
     return out
 
 
@@ -96,11 +97,10 @@ def validate(final_cfg: Mapping[str, Any], judged_cfg: Mapping[str, Any], runs: 
             sigma = {o: noise[o].rms for o in outputs}
             after = _whole(final_cfg, inputs, sigma, outputs, seed)
             before = _whole(judged_cfg, inputs, sigma, outputs, seed)
+            split(inputs, None)
+            held = rmse(unit_scores(final_cfg, inputs, all_units(inputs), sigma, outputs), sigma)
             for o in outputs:
                 out.append({"run": str(getattr(r, "path", "")), "output": o, "noise_rms": sigma[o],
-                            "rmse_judged": before[o]["rmse"], **after[o]})
+                            "rmse_judged": before[o]["rmse"], "rmse_heldout_part": held[o], **after[o]})
     return out
 
-
-def heldout_scores_rmse(s: Scores, sigma: Mapping[str, float]) -> dict[str, float]:
-    return rmse(s, sigma)

@@ -272,7 +272,8 @@ def _validation_lines(rows: list[dict]) -> list[str]:
     out = ["Prospective validation (runs never used to calibrate or select), judged -> extended model:"]
     for v in rows:
         u = OUTPUT_UNITS.get(v["output"], "")
-        out.append(f"  {Path(v['run']).name} {v['output']:<10}  {_num(v['rmse_judged'])} {u} -> {_num(v['rmse'])} {u}"
-                   f"{_ci(v.get('rmse_ci95'))} = {_times(v['rmse'], v['noise_rms'])} its noise; mean offset "
+        out.append(f"  {Path(v['run']).name} {v['output']:<10}  whole run {_num(v['rmse_judged'])} {u} -> "
+                   f"{_num(v['rmse'])} {u}{_ci(v.get('rmse_ci95'))} = {_times(v['rmse'], v['noise_rms'])} its noise; "
+                   f"the part diagnose would hold out {_num(v.get('rmse_heldout_part'))} {u}; mean offset "
                    f"{_num(v['offset'], 3)} {u}{_ci(v.get('offset_ci95'))}, without it {_num(v['rmse_offset_removed'])} {u}")
     return out

@@ -10,7 +10,7 @@ clean and outside). :func:`judge` scores a diagnosis of a case: ``detected`` (th
 is named, or is a named cause's confusable alternative), ``wrong`` (a confident name,
 confidence above 0.5, of something not true, alternatives included), ``alarm`` (anything
 named on a clean run) and ``confident`` (a name with confidence above 0.5).
-:func:`wilson` gives 95 % intervals of a rate.
+:func:`rates` gives the rates with 95 % Wilson intervals.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import numpy as np
 from tests.analysis.second import effects as fx
 from tests.analysis.second.protocols import PROTOCOLS, Inputs, segment_rows
 from tests.analysis.second.rigs import GRAVITY, RIGS, Rig, helix_length_mm, resistance_ohm
+from tsa_bench.sweep.stats import wilson
 
 #: name -> (rig, protocol, effect builder or None, kind)
 CASES = {
@@ -119,17 +120,6 @@ def judge(case: Case, result) -> dict:
             "detected": bool(case.family) and case.family in names | alts,
             "wrong": bool(wrong), "wrong_names": wrong, "alarm": case.kind == "clean" and bool(named),
             "confident": bool(confident), "summary": result.summary}
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """95 % Wilson score interval of k successes in n."""
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return max(0.0, c - h), min(1.0, c + h)
 
 
 def rates(rows: list[dict]) -> dict[str, tuple[int, int, tuple[float, float]]]:
