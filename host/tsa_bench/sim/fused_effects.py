@@ -444,6 +444,8 @@ def _quantisation(s: Snip, e: Any, p: str, E: str) -> None:
 
 def _drift(target: str, param: str, gain: bool) -> Callable[[Snip, Any, str, str], None]:
     def snip(s: Snip, e: Any, p: str, E: str) -> None:
+        if not getattr(e.params, param):      # a rate of 0 does nothing (the chain's apply returns at once)
+            return
         s.params.append((f"{p}k", f"{E}.params.{param}"))
         s.memory.append((f"{p}t0", "_t0"))
         s.body += [f"if {p}t0 is None:",

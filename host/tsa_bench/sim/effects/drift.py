@@ -8,7 +8,8 @@ plant's first sample ``t0``: an **offset drift** adds ``rate (t - t0) / 3600`` (
 amplifier's zero creeping with its temperature), a **gain drift** multiplies the reading by
 ``1 + rate (t - t0) / 3600`` (a sense current or reference voltage that drifts: the
 error grows with the reading). All four are off unless a bench file switches them on
-(``default_enabled`` False); they run after the sensor noise and quantisation, so a
+(``default_enabled`` False) and do nothing at a rate of 0; they run after the sensor noise
+and quantisation, so a
 plant that never names them draws the same random numbers as before they existed (the
 bench's own ADC conversion, :mod:`tsa_bench.sim.sensors`, quantises the reading last).
 They are what ``diagnose`` calls ``length_sensor_drift`` and ``resistance_sensor_drift``
@@ -54,7 +55,8 @@ class LengthOffsetDrift(_Drift):
         mm_per_hour: float = param(0.0, "mm/h", "drift rate of the length reading's zero")
 
     def apply(self, state: PlantState) -> None:
-        state.length_mm += self.params.mm_per_hour * self.hours(state)
+        if self.params.mm_per_hour:
+            state.length_mm += self.params.mm_per_hour * self.hours(state)
 
 
 @register_effect
@@ -73,7 +75,8 @@ class LengthGainDrift(_Drift):
         per_hour: float = param(0.0, "1/h", "relative drift rate of the length reading's gain")
 
     def apply(self, state: PlantState) -> None:
-        state.length_mm *= 1.0 + self.params.per_hour * self.hours(state)
+        if self.params.per_hour:
+            state.length_mm *= 1.0 + self.params.per_hour * self.hours(state)
 
 
 @register_effect
@@ -91,7 +94,8 @@ class ResistanceOffsetDrift(_Drift):
         ohm_per_hour: float = param(0.0, "ohm/h", "drift rate of the resistance reading's zero")
 
     def apply(self, state: PlantState) -> None:
-        state.resistance_ohm += self.params.ohm_per_hour * self.hours(state)
+        if self.params.ohm_per_hour:
+            state.resistance_ohm += self.params.ohm_per_hour * self.hours(state)
 
 
 @register_effect
@@ -110,4 +114,5 @@ class ResistanceGainDrift(_Drift):
         per_hour: float = param(0.0, "1/h", "relative drift rate of the resistance reading's gain")
 
     def apply(self, state: PlantState) -> None:
-        state.resistance_ohm *= 1.0 + self.params.per_hour * self.hours(state)
+        if self.params.per_hour:
+            state.resistance_ohm *= 1.0 + self.params.per_hour * self.hours(state)
