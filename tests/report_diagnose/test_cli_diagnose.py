@@ -145,7 +145,8 @@ def fake_engine(monkeypatch):
 
     calls = {}
 
-    def diagnose(runs, model, holdout=None, *, max_causes=3, seed=0, progress=None, outputs=None, model_path=None):
+    def diagnose(runs, model, holdout=None, *, max_causes=3, seed=0, progress=None, outputs=None, model_path=None,
+                 validate=None):
         if holdout == "bad":
             raise analysis.HoldoutError(f"holdout {holdout!r}: expected run:N, after:SECONDS or fraction:F")
         if holdout == "interrupt":

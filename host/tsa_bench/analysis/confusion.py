@@ -16,8 +16,6 @@ caveats.
 
 from __future__ import annotations
 
-from tsa_bench.analysis.families import FAMILIES
-
 #: confidence of a cause with a form parameter at a soft bound of its range, at most
 EDGE_CAP = 0.5
 
@@ -84,6 +82,3 @@ def cap(confidence: float, family: str, alternatives: list[dict], at_bound: list
                        f"{EDGE_CAP:.1f})")
     return confidence, caveats
 
-
-def form_label(variant: str, family: str) -> str:
-    return FAMILIES[family][variant]

@@ -34,9 +34,12 @@ from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
 FLOOR = RELEVANT ** 2
 N_CAL = 2000          # calibration subsample (all runs)
 N_REFIT = 1000        # subsample for candidate refits (the named one is then polished on N_CAL)
-REFIT_MAX = 8         # forms refitted per iteration
+REFIT_MAX = 8          # forms refitted per iteration (every form of the leader, the best of each other family)
 REFIT_NFEV = 20       # function evaluations per refit
-CONTENDER = 0.0       # other effects are refitted when their screen reaches this share of the leader's
+#: other effects are refitted when their screen reaches this share of the leader's: every one that
+#: screens at all (SCREEN_MIN), since a linear screen can miss an effect whose refit explains a lot
+#: (the load dependence changes the calibration it is screened against)
+CONTENDER = 0.0
 #: a form whose companion only acts through it (the resistance's temperature coefficient needs the
 #: strings to heat) is also refitted together with it
 COMPANIONS = {"thermal_dynamics": ("resistance_temperature",)}

@@ -12,28 +12,23 @@ verdict (:mod:`tsa_bench.analysis.verdict`). Steps:
    by least squares, then every parameter on a training subsample (calibrate.py);
 4. residual structure of the judged model (structure.py); if no output is structured
    above the noise the verdict is ``explained`` and nothing is screened;
-5. up to ``max_causes`` iterations: screen every candidate form the data can test (its
-   excitation occurs, :data:`~tsa_bench.analysis.families.NEEDS`) and may blame (the output it
-   acts on was structured in the judged model on its own account, so a later cause never
-   just repairs what an earlier one did to an output that was fine) (screening.py), refit every form of the leading effect and the best form of the next
-   ones that screen at least :data:`CONTENDER` of the leader, together with the model's
-   own parameters, and **name** the one with the largest
-   held-out improvement among those that pass the gate: the 95 % block-bootstrap
-   interval of the pooled held-out improvement over the current model is above 0 and its
-   estimate is at least the relevance floor (a quarter of a noise variance per sample: a
-   structure of half the noise RMS); switching the form off again in the refitted model
-   worsens the training fit by at least the floor (the gain is the form's, not the
-   re-calibration's) and, on the held-out units where the form acts, worsens it
-   significantly; no output's held-out error grows by more than :data:`HARM_REL` of it in
-   :data:`HARM_P` of the resamples; none of the
-   form's own parameters ended at a soft bound. A refit whose parameters fit the
-   training data better even with the form off shows the current calibration was a
-   poorer optimum: the model is re-calibrated from there and the iteration repeated;
-6. the final model: each named cause's own part (final model against the final model
-   re-calibrated without it; with one cause, the judged model) orders the causes,
-   dominant first, and gives its confidence (share of bootstrap replicates above the
-   floor; ``form_confidence``: share in which its form beats the family's other forms);
-   the residual is tested again and the verdict decided (verdict.py).
+5. the search (:mod:`~tsa_bench.analysis.search`): forward selection, one cause per
+   iteration (:func:`~tsa_bench.analysis.naming.iteration`: screen every candidate form the
+   data can test and may blame, refit the leading effect's forms and the best form of every
+   other effect that screens at all, together with the model's own parameters, and name the
+   one with the largest held-out improvement among those that pass the gate: on some output
+   the 95 % block-bootstrap interval of its held-out improvement is above 0 and it is at
+   least the relevance floor, switching it off again worsens the training fit by the floor
+   and the held-out fit significantly, no output is made more than 10 % worse);
+   then backward elimination: a cause that no longer earns its place in the model leaves it
+   and gives its iteration back; confusable alternatives are kept only if swapping them in
+   does as well;
+6. the final model (:mod:`~tsa_bench.analysis.finish`): the residual tested again, the
+   hold-to-hold variance component named where it is random, confidences capped by
+   confusable alternatives and parameters at the edge of their range, near misses, the
+   verdict (verdict.py), and the extended model whose final held-out RMSE is computed from
+   its YAML round trip (what ``--write-model`` writes and ``predict`` reads back).
+Progress lines say the stage (``[stage k/6 name]``) and how far within it.
 """
 
 from __future__ import annotations
