@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 
 from tsa_bench.models.transfer import transfer_study
-from tsa_bench.store.csv_import import import_csv
+from tsa_bench.importers.csv_import import import_csv
 from tsa_bench.store.reader import read_run
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -29,6 +29,8 @@ import math
 import re
 from dataclasses import dataclass
 
+#: The weight of one gram under standard gravity, N (a hanging mass in g -> the load in N).
+G_N_PER_G = 9.80665e-3
 #: dimension -> {unit: (factor to the base unit, offset)}; the first unit is the base.
 DIMENSIONS: dict[str, dict[str, tuple[float, float]]] = {
     "dimensionless": {"1": (1.0, 0.0), "%": (0.01, 0.0), "ppm": (1e-6, 0.0), "ustrain": (1e-6, 0.0)},

@@ -110,7 +110,7 @@ def main() -> int:
             cli("fit", "self-sensing", str(run_file(work / "train")), "--out", str(model))
         lo, hi = model_info(model)[0]
         if "load-strain" in model.read_text(encoding="utf-8")[:200]:   # its range spans every training load:
-            from tsa_bench.control import load_strain                      # targets reachable at 250 g
+            from tsa_bench.models import load_strain                      # targets reachable at 250 g
 
             ls = load_strain.load(model)
             span = [ls.length(t, 250 * load_strain.G_N_PER_G) for t in np.linspace(*ls.twist_range_turns, 41)]

@@ -74,7 +74,7 @@ def main() -> None:
                                                     StrainResistanceModel, _SteadyProblem)
     from tsa_bench.models.transient import fit_decay
     from tsa_bench.store import read_run
-    from tsa_bench.store.reader import RunData
+    from tsa_bench.rundata import RunData
 
     whole = read_run(args.run)
     print(f"fit_long_forms: {args.run}, long-run form above {LONG_RUN_HOLDS} holds (forms forced here)")

@@ -47,7 +47,8 @@ from tsa_bench.device import BenchClient
 from tsa_bench.motion import TrapezoidProfile
 from tsa_bench.protocol import encode, msg
 from tsa_bench.protocol.blocks import SINGLE_SHOT_MIN_PERIOD_US
-from tsa_bench.simavr import SimavrBench, simavr_settings
+from tsa_bench.bench.simavr_section import simavr_settings
+from tsa_bench.simavr import SimavrBench
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = load_bench(ROOT / "configs" / "bench" / "simavr.yaml")

@@ -60,7 +60,7 @@ for i in range(n):
 FIT_CHILD = """
 import sys, time, numpy as np
 from tsa_bench.store import read_run
-from tsa_bench.store.reader import RunData
+from tsa_bench.rundata import RunData
 from tsa_bench.models.fitting import fit
 run = read_run(sys.argv[1]); k = int(sys.argv[2])
 t = run.samples["t"]; span = float(t[-1] - t[0]) + float(t[1] - t[0])

@@ -40,7 +40,8 @@ from tsa_bench.bench import load_bench
 from tsa_bench.device import BenchClient
 from tsa_bench.protocol import msg
 from tsa_bench.protocol.blocks import ADS1115_CONVERSION_US, ADS1115_SPS, SAMPLE_BYTES
-from tsa_bench.simavr import SimavrBench, simavr_settings
+from tsa_bench.bench.simavr_section import simavr_settings
+from tsa_bench.simavr import SimavrBench
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = load_bench(ROOT / "configs" / "bench" / "simavr.yaml")

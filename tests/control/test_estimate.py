@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from tsa_bench.cli import main
-from tsa_bench.control import load_strain as ls
+from tsa_bench.models import load_strain as ls
 from tsa_bench.store.reader import read_run
 from tests.control.helpers import ROOT
 

@@ -13,9 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
 
-from tsa_bench.models.fitting import quasi_static_mask
+from tsa_bench.models.fit_samples import quasi_static_mask
 from tsa_bench.models.preisach import PreisachModel, relay_state_blocks, relay_states
-from tsa_bench.store.reader import RunData
+from tsa_bench.rundata import RunData
 
 
 def loop_mask(t: np.ndarray, seg: np.ndarray, moving: np.ndarray) -> np.ndarray:

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from tsa_bench.plan import Limits, PlanErrors, load_plan_text
+from tsa_bench.benchdata import Limits
+from tsa_bench.plan import PlanErrors, load_plan_text
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "configs" / "protocols"
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 
-from tsa_bench.plan import Hold, Limits, Move, Prompt, SetHeater, SetSampling, load_plan_text
+from tsa_bench.benchdata import Limits
+from tsa_bench.plan import Hold, Move, Prompt, SetHeater, SetSampling, load_plan_text
 from plan_helpers import BENCH, protocol
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from tsa_bench.plan import Limits, PlanError, PlanErrors, load_plan
+from tsa_bench.benchdata import Limits
+from tsa_bench.plan import PlanError, PlanErrors, load_plan
 from plan_helpers import BENCH, HEADER, errors_of, protocol
 
 # (id, YAML text, expected 1-based line, expected field, expected message fragment)

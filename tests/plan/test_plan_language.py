@@ -9,7 +9,7 @@ import jsonschema
 import pytest
 
 from tests.plan.plan_helpers import BENCH, PROTOCOL_DIR, errors_of, protocol
-from tsa_bench.documents import parse_yaml
+from tsa_bench.userfiles import parse_yaml
 from tsa_bench.plan import Hold, Move, Prompt, Settle, load_plan, load_plan_text
 from tsa_bench.plan.schema import STEPS, schema_text
 from tsa_bench.plan.steps import STEP_KINDS

@@ -16,7 +16,7 @@ import pytest
 from tests.plan.plan_helpers import BENCH, PROTOCOL_DIR, errors_of
 from tsa_bench.plan import Move, Segment, TrackLength, load_plan, load_plan_text
 from tsa_bench.plan import compiler, loader, model
-from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, RepeatOp
+from tsa_bench.plan.ops import ActionOp, ForEachOp, LostTwistOp, MoveOp, RepeatOp
 
 NESTED = """name: nested
 defaults: {rate_turns_per_s: 1, accel_turns_per_s2: 10}

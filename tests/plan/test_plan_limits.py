@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tsa_bench.plan import Limits
+from tsa_bench.benchdata import Limits
 from plan_helpers import BENCH
 
 

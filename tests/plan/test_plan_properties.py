@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tsa_bench.motion import TrapezoidProfile
-from tsa_bench.plan import Limits, load_plan_text
+from tsa_bench.benchdata import Limits
+from tsa_bench.plan import load_plan_text
 
 turns = st.floats(min_value=-50, max_value=50, allow_nan=False).map(lambda x: round(x, 3))
 step = st.one_of(

@@ -11,7 +11,7 @@ from tsa_bench.plan import load_plan_text
 from tsa_bench.plan.actions import HeaterLevel, Hold, Move
 from tsa_bench.plan.report import describe_segment
 from tsa_bench.plan.schema import schema_text
-from tsa_bench.documents import parse_yaml
+from tsa_bench.userfiles import parse_yaml
 from tsa_bench.runner.commands import device_commands
 from tsa_bench.protocol import msg
 from tests.plan.plan_helpers import BENCH, errors_of, protocol

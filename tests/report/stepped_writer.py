@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.store import RunWriter
 from tsa_bench.store.live import LiveSidecar
 

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from tsa_bench.cli import main
 from tsa_bench.report.run_report import write_run_report
 from tsa_bench.store import read_run
-from tsa_bench.store.csv_import import CsvImportError, import_csv
+from tsa_bench.importers.csv_import import CsvImportError, import_csv
 
 
 def test_export_then_import_gives_the_same_samples(protocol_runs, tmp_path):

@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from tests.runner.helpers import BENCH, plan_from_text
-from tsa_bench.plan import Limits, load_plan_text
+from tsa_bench.benchdata import Limits
+from tsa_bench.plan import load_plan_text
 from tsa_bench.runner.commands import MAX_DWELL_US, device_commands, dwell_chunks_us, plan_problems
 
 

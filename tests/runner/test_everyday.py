@@ -18,7 +18,7 @@ from rich.console import Console
 
 from tsa_bench.cli import main
 from tsa_bench.console.progress import ProgressDisplay
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, SampleBlock
+from tsa_bench.rundocs import SAMPLE_COLUMNS, SampleBlock
 from tsa_bench.shipped import configs_root, find_config
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -87,7 +87,8 @@ def test_lost_connection_fails_the_run_and_keeps_data(tmp_path):
 
 def test_device_refusal_fails_the_run_without_executing_it(tmp_path):
     """A plan beyond the device's own twist limit is refused by the device itself."""
-    from tsa_bench.plan import Limits, load_plan_text
+    from tsa_bench.benchdata import Limits
+    from tsa_bench.plan import load_plan_text
 
     plan = load_plan_text("name: far\nsteps:\n  - move_to: {turns: 150, rate_turns_per_s: 5, accel_turns_per_s2: 50}\n",
                           Limits(), "far.yaml")  # host-side limits switched off on purpose
@@ -135,7 +136,7 @@ def test_a_failing_consumer_stops_the_device_and_the_file_still_closes(tmp_path)
     """A consumer that raises (a full disk, a bug) ends the run as failed after STOP."""
     from tsa_bench.device import BenchClient
     from tsa_bench.runner import AutoOperator, Runner
-    from tsa_bench.runner.documents import SampleBlock
+    from tsa_bench.rundocs import SampleBlock
     from tsa_bench.store import RunWriter
     from tests.runner.helpers import BENCH
 

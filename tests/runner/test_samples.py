@@ -9,7 +9,8 @@ import pytest
 
 from tsa_bench.bench import load_bench
 from tsa_bench.protocol import msg
-from tsa_bench.runner.samples import G_N_PER_G, sample_block
+from tsa_bench.runner.samples import sample_block
+from tsa_bench.units import G_N_PER_G
 
 
 def test_columns_from_rows_in_physical_units():

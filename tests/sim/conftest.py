@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 from simhost import HELLO, Host
 
-from tsa_bench.bench import BenchConfig, load_bench
+from tsa_bench.bench import load_bench
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.protocol import msg
 from tsa_bench.sim import SimDevice
 

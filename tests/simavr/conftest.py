@@ -14,7 +14,8 @@ import serial
 import tsa_bench.transport  # noqa: F401  (registers sim://)
 from tsa_bench.bench import load_bench
 from tsa_bench.protocol import MessageDecoder, msg
-from tsa_bench.simavr import SimavrBench, SimavrSettings
+from tsa_bench.bench.simavr_section import SimavrSettings
+from tsa_bench.simavr import SimavrBench
 
 ROOT = Path(__file__).resolve().parents[2]
 SIMAVR_BENCH = load_bench(ROOT / "configs" / "bench" / "simavr.yaml")

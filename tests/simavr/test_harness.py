@@ -15,7 +15,8 @@ import serial
 from tests import conformance_scenarios as sc
 from tests.simavr.conftest import SIMAVR_BENCH, simavr_port
 from tsa_bench.protocol import msg
-from tsa_bench.simavr import SimavrBench, SimavrSettings
+from tsa_bench.bench.simavr_section import SimavrSettings
+from tsa_bench.simavr import SimavrBench
 
 
 def test_rig_map_matches_the_firmware_pin_map(repo_root):

@@ -12,7 +12,8 @@ import time
 from tests import conformance_scenarios as sc
 from tests.simavr.conftest import SIMAVR_BENCH, simavr_port
 from tsa_bench.protocol import encode, msg
-from tsa_bench.simavr import SimavrBench, SimavrSettings
+from tsa_bench.bench.simavr_section import SimavrSettings
+from tsa_bench.simavr import SimavrBench
 
 E, S, STATE = msg.EventKind, msg.Status, msg.DeviceState
 SETTLE_S, FIRST_REPLY_S = 0.08, 2.0

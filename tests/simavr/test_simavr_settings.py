@@ -13,7 +13,8 @@ import yaml
 from tsa_bench.bench import BenchConfigError, load_bench, parse_bench
 from tsa_bench.sim.plant import plant_from_config
 from tsa_bench.sim.sensors import SimSensors
-from tsa_bench.simavr import PlantServer, simavr_settings
+from tsa_bench.bench.simavr_section import simavr_settings
+from tsa_bench.simavr import PlantServer
 from tsa_bench.simavr.plant_server import HELLO
 
 

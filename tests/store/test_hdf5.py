@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tsa_bench.runner.documents import (
+from tsa_bench.rundocs import (
     SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord,
 )
 from tsa_bench.store import RunWriter, read_run

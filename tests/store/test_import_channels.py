@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from tsa_bench.cli import main
 from tsa_bench.store import read_run
-from tsa_bench.store.csv_import import CsvImportError, import_csv
+from tsa_bench.importers.csv_import import CsvImportError, import_csv
 
 RIG = """# rig C: a heated actuator with a load cell and a pressure line
 time_s,len_mm,T_K,F_N,p_kPa,humidity

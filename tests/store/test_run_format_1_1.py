@@ -7,7 +7,7 @@ import h5py
 import numpy as np
 
 from tests.runner.helpers import plan_from_text, run_plan
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.store import RunWriter, read_run
 from tsa_bench.store.inspect import inspect_run
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tests.runner.helpers import plan_from_text, run_plan
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.store import RunFileError, read_run
 from tsa_bench.store.csv_export import export_csv
 from tsa_bench.store.hdf5 import SEGMENT_DTYPE
@@ -111,7 +111,7 @@ def test_new_kinds_and_texts_beyond_the_remembered_ones_read_back(tmp_path, monk
     """A kind the writer does not know yet gets the next code (kind_names grows); once it
     remembers MAX_REMEMBERED_TEXTS texts, new texts are stored each time, still readable."""
     from tests.store.test_hdf5 import block, start_doc
-    from tsa_bench.runner.documents import RunStop, SegmentRecord
+    from tsa_bench.rundocs import RunStop, SegmentRecord
     from tsa_bench.store import RunWriter, hdf5
 
     monkeypatch.setattr(hdf5, "MAX_REMEMBERED_TEXTS", 3)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tsa_bench.documents import DocumentError
+from tsa_bench.userfiles import DocumentError
 from tsa_bench.sweep import load_study
 
 GOOD = """\

@@ -23,7 +23,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from tsa_bench.analysis.inputs import OUTPUTS, RunInputs
-from tsa_bench.analysis.modelspec import ParamSpec, get_value, set_values
+from tsa_bench.analysis.modelspec import get_value, set_values
+from tsa_bench.analysis.paramspec import ParamSpec
 from tsa_bench.analysis.replay import ReplayCache, replay
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from tsa_bench.analysis.modelspec import ParamSpec
+from tsa_bench.analysis.paramspec import ParamSpec
 
 #: effect -> {plant effect/form name: form label}; the first form is the library's own.
 FAMILIES: dict[str, dict[str, str]] = {

@@ -3,7 +3,7 @@
 Units: t in s, turns in turns, heater voltage in V, load in g (converted from the
 file's N), length in mm, resistance in ohm.
 
-Contract: :func:`run_inputs` turns a :class:`~tsa_bench.store.RunData` into
+Contract: :func:`run_inputs` turns a :class:`~tsa_bench.rundata.RunData` into
 :class:`RunInputs`: undeclared loads forward-filled (leading gaps from the model's
 ``initial_load_g``), a missing heater voltage read as 0 V, isolated missing twist
 samples forward-filled (and never scored). :func:`missing_inputs` lists, as

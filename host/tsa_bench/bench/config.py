@@ -7,7 +7,7 @@ raw counts to physical units, applied on the host (the device reports raw counts
 only by the firmware-in-the-loop bench (:mod:`tsa_bench.simavr`).
 
 :func:`load_bench` / :func:`parse_bench` read the file with the hardened YAML reader
-(:mod:`tsa_bench.documents`) and validate all of it before anything is used: every
+(:mod:`tsa_bench.userfiles`) and validate all of it before anything is used: every
 key and value (finite numbers in range, limits the wire protocol can carry), the
 ``port`` (:mod:`tsa_bench.bench.ports`), the ``plant`` of a simulated bench (built and
 sampled once across the bench limits, so a plant that cannot run is refused here and
@@ -20,14 +20,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tsa_bench.bench.errors import BenchConfigError
 from tsa_bench.bench.ports import PortPolicyError, check_port
 from tsa_bench.bench.records import check_records
-from tsa_bench.documents import DocumentError, YamlDocument, parse_yaml, read_text_file
-from tsa_bench.plan.limits import Limits
+from tsa_bench.userfiles import DocumentError, YamlDocument, parse_yaml, read_text_file
+from tsa_bench.benchdata import BenchConfig, Limits, PositionCalibration, ResistanceCalibration
 from tsa_bench.shipped import shipped
 
 #: Where the shipped bench files live (the source tree's configs/bench, or the wheel's copy).
@@ -39,78 +39,6 @@ KNOWN_KEYS = ("name", "backend", "port", "baud", "steps_per_turn", "limits", "wa
 # What the wire protocol can carry (protocol/messages.md): i32 steps, u32 step rates,
 # u16 mV heater voltage, u16 ms watchdog, u8 queue slots.
 I32_MAX, U32_MAX, U16_MAX, U8_MAX = 2**31 - 1, 2**32 - 1, 2**16 - 1, 2**8 - 1
-
-
-class BenchConfigError(ValueError):
-    """A bench file that cannot be used; the message names file, position and key."""
-
-
-@dataclass(frozen=True)
-class PositionCalibration:
-    """ADS1115 counts -> TSA length: ``length_mm = offset_mm + mm_per_count * counts``."""
-
-    mm_per_count: float
-    offset_mm: float
-
-    def length_mm(self, counts: Any) -> Any:
-        return self.offset_mm + self.mm_per_count * counts
-
-    def counts(self, length_mm: float) -> float:
-        """Inverse map (unrounded), used by the simulated sensor."""
-        return (length_mm - self.offset_mm) / self.mm_per_count
-
-
-@dataclass(frozen=True)
-class ResistanceCalibration:
-    """CS5513 counts -> string resistance: ``R_ohm = offset_ohm + gain * ohm_per_count * counts``.
-
-    ``ohm_per_count = V_ref / 2^19 / I_sense`` for the 20-bit bipolar converter across
-    the constant sense current ``sense_current_A``; ``gain`` (1) and ``offset_ohm`` (0)
-    come from a calibration against reference resistors (``tsa-bench calibrate resistance``).
-    """
-
-    ohm_per_count: float
-    sense_current_A: float
-    adc_bits: int = 20
-    gain: float = 1.0
-    offset_ohm: float = 0.0
-
-    def resistance_ohm(self, counts: Any) -> Any:
-        return self.offset_ohm + self.gain * self.ohm_per_count * counts
-
-    def counts(self, resistance_ohm: float) -> float:
-        """Inverse map (unrounded), used by the simulated converter."""
-        return (resistance_ohm - self.offset_ohm) / (self.gain * self.ohm_per_count)
-
-    @property
-    def max_counts(self) -> int:
-        return 2 ** (self.adc_bits - 1) - 1
-
-
-@dataclass(frozen=True)
-class BenchConfig:
-    """One rig. ``source_text`` is the YAML exactly as read (stored in the run file)."""
-
-    name: str
-    backend: str
-    port: str | None
-    baud: int
-    steps_per_turn: int
-    limits: Limits
-    watchdog_s: float
-    queue_slots: int
-    position: PositionCalibration
-    resistance: ResistanceCalibration
-    ack_timeout_s: float = 0.25
-    boot_timeout_s: float = 3.0
-    plant: dict[str, Any] = field(default_factory=dict)
-    simavr: dict[str, Any] = field(default_factory=dict)
-    source_text: str = ""
-    path: str | None = None
-
-    def steps(self, turns: float) -> int:
-        """Motor turns -> nearest whole microstep."""
-        return int(round(turns * self.steps_per_turn))
 
 
 class _Fields:
@@ -293,7 +221,7 @@ def parse_bench(text: str, filename: str = "<string>", *, allow_url: bool = Fals
 
         check_plant(bench, doc)
     if bench.backend == "simavr" or bench.simavr:
-        from tsa_bench.simavr.launcher import simavr_settings
+        from tsa_bench.bench.simavr_section import simavr_settings
 
         simavr_settings(bench, trust_firmware_dir=trust_firmware_dir)
     return bench

@@ -13,10 +13,10 @@ import math
 import re
 from typing import TYPE_CHECKING
 
-from tsa_bench.documents import YamlDocument
+from tsa_bench.userfiles import YamlDocument
 
 if TYPE_CHECKING:
-    from tsa_bench.bench.config import BenchConfig
+    from tsa_bench.benchdata import BenchConfig
 
 _WHERE = re.compile(r"^(plant(?:\.\w+)*)(?::\s*(?:unknown key\(s\) \['|')(\w+))?")
 
@@ -32,7 +32,7 @@ def _located(doc: YamlDocument, message: str) -> str:
 
 def check_plant(bench: BenchConfig, doc: YamlDocument) -> None:
     """Raise BenchConfigError (placed at the offending key) unless the plant builds and runs."""
-    from tsa_bench.bench.config import BenchConfigError
+    from tsa_bench.bench.errors import BenchConfigError
     from tsa_bench.sim.plant import plant_from_config
     from tsa_bench.sim.sensors import SimSensors
 

@@ -25,7 +25,7 @@ import datetime as dt
 import math
 from typing import Any
 
-from tsa_bench.documents import YamlDocument
+from tsa_bench.userfiles import YamlDocument
 
 #: quantity -> (point keys, result keys, rms key)
 QUANTITIES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {
@@ -39,7 +39,7 @@ MAX_POINTS = 10_000
 
 
 def _error(doc: YamlDocument, path: tuple[str | int, ...], message: str):
-    from tsa_bench.bench.config import BenchConfigError
+    from tsa_bench.bench.errors import BenchConfigError
 
     shown = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in path).lstrip(".")
     return BenchConfigError(f"{doc.where(*path)}: {shown}: {message}")

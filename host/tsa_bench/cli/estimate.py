@@ -23,7 +23,7 @@ def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], ou
     recorded them, their errors against the declared load and the position sensor (which the
     estimate never reads). docs/control.md.
     """
-    from tsa_bench.control import load_strain as ls
+    from tsa_bench.models import load_strain as ls
     from tsa_bench.store.reader import RunFileError, read_run
 
     def _read(path: str):

@@ -76,7 +76,8 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
             validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
-    from tsa_bench.models.fitting import FitError, fit, fit_notes
+    from tsa_bench.models.fit_samples import FitError
+    from tsa_bench.models.fitting import fit, fit_notes
     from tsa_bench.models.saved import ModelFileError, save_model
 
     if not 1 <= levels <= 200:
@@ -125,7 +126,8 @@ def predict_cmd(model_file: str, run: str, out: str | None, holdout: str | None,
         return
     if holdout is not None or json_path is not None:
         _fail("--holdout and --json are for a bench file (the extended model diagnose --write-model writes)")
-    from tsa_bench.models.fitting import FitError, evaluate
+    from tsa_bench.models.fit_samples import FitError
+    from tsa_bench.models.fitting import evaluate
     from tsa_bench.models.saved import ModelFileError, load_model_file
     from tsa_bench.store.derived import DerivedFileError, write_with_column
 
@@ -214,7 +216,7 @@ MAX_MANIPULATOR_SAMPLES = 1_000_000
 
 def _manipulator_config(path: str) -> dict[str, Any]:
     """The manipulator YAML, read with the hardened reader and checked key by key."""
-    from tsa_bench.documents import DocumentError, read_yaml
+    from tsa_bench.userfiles import DocumentError, read_yaml
 
     try:
         doc = read_yaml(path, what="manipulator file")

@@ -57,7 +57,8 @@ def _start_simavr(bench, speed: float | None, seed: int | None, trust_firmware_d
     import dataclasses
 
     from tsa_bench.bench import BenchConfigError
-    from tsa_bench.simavr import SimavrBench, SimavrError, simavr_settings
+    from tsa_bench.bench.simavr_section import simavr_settings
+    from tsa_bench.simavr import SimavrBench, SimavrError
     try:
         settings = simavr_settings(bench, trust_firmware_dir=trust_firmware_dir)
         if speed:

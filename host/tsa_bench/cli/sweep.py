@@ -42,7 +42,7 @@ def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: 
     missing_extra = [m for m in ("distributed", "pyarrow") if importlib.util.find_spec(m) is None]
     if missing_extra:
         fail(f"tsa-bench sweep needs {' and '.join(missing_extra)}: pip install 'tsa-bench[sweep]'", EXIT_FAILED)
-    from tsa_bench.documents import DocumentError
+    from tsa_bench.userfiles import DocumentError
     from tsa_bench.sweep import load_study
     from tsa_bench.sweep.table import ResultsTable, ResultsTableError
 

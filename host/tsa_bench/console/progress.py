@@ -12,7 +12,7 @@ import math
 import time
 from typing import TYPE_CHECKING
 
-from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundocs import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 if TYPE_CHECKING:  # rich is imported where a display is made (hms alone needs none)
     from rich.console import Console

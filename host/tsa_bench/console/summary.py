@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from tsa_bench.console.progress import hms
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.store.inspect import ColumnStats, RunInfo
 
 SHOWN = ("t", "turns", "length", "resistance", "heater_voltage", "load", "motor_moving")

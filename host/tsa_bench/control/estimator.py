@@ -186,7 +186,7 @@ class OnlineLengthEstimator:
 
 class TwistResistanceEstimator:
     """Per-sample length estimates (mm) from resistance AND twist with a load-strain model
-    (:mod:`tsa_bench.control.load_strain`): the resistance, freed of the decay since the stop and
+    (:mod:`tsa_bench.models.load_strain`): the resistance, freed of the decay since the stop and
     averaged over the last ``window_s`` of the hold (after ``skip_s``), and the twist solve the
     kinematics and the strain-load-resistance relation together for length and load, so a load
     change does not read as a length change. NaN while moving and without resistance. Same
@@ -202,7 +202,7 @@ class TwistResistanceEstimator:
         self.last_load_N = math.nan
 
     def update(self, t_s: float, resistance_ohm: float, motor_moving: bool, turns: float = 0.0) -> float:
-        from tsa_bench.control.load_strain import SETTLED_S
+        from tsa_bench.models.load_strain import SETTLED_S
 
         if motor_moving:
             self._moving = True

@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 
 from tsa_bench.control.controller import ON_TARGET
-from tsa_bench.runner.samples import G_N_PER_G
-from tsa_bench.store.reader import RunData
+from tsa_bench.units import G_N_PER_G
+from tsa_bench.rundata import RunData
 
 
 @dataclass(frozen=True)

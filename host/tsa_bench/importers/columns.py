@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.importers.headers import guess_target, name_unit, same_unit, split_header, suffix_unit
 from tsa_bench.importers.table import SourceTable
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.units import CHANNELS, DIMENSIONS, UnitError, channel_conversion, parse_unit, units_of
 
 EXTRA_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")

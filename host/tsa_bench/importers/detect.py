@@ -12,8 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from tsa_bench.documents import DocumentError
-from tsa_bench.documents.files import check_regular_file
+from tsa_bench.userfiles import DocumentError
+from tsa_bench.userfiles.files import check_regular_file
 from tsa_bench.importers.errors import SUPPORTED, ImportFileError
 from tsa_bench.importers.table import SourceTable
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.units import CHANNELS, UnitError, channel_conversion, parse_unit
 
 _BRACKETS = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")

@@ -29,7 +29,7 @@ from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.importers.headers import same_unit
 from tsa_bench.importers.values import converted
 from tsa_bench.importers.writer import fill, start_record, write_run
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 
 
 @dataclass

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tsa_bench.runner.documents import SegmentRecord
+from tsa_bench.rundocs import SegmentRecord
 
 DEFAULTS = {"turns": 0.0, "heater_V": 0.05, "load_N": 0.05}
 

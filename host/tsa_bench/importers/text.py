@@ -28,8 +28,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from tsa_bench.documents import DocumentError
-from tsa_bench.documents.files import read_bytes_file
+from tsa_bench.userfiles import DocumentError
+from tsa_bench.userfiles.files import read_bytes_file
 from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.importers.table import Column, SourceTable, numbers
 

@@ -7,7 +7,7 @@ import numpy as np
 from tsa_bench.importers.columns import Choice
 from tsa_bench.importers.errors import ImportFileError
 from tsa_bench.importers.table import SourceTable
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.store.reader import MAX_ABS_VALUE
 
 MAX_ERRORS = 20

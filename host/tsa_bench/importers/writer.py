@@ -15,7 +15,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock, SegmentRecord
 from tsa_bench.store.hdf5 import CHUNK, RunWriter
 from tsa_bench.store.replace import replacing
 

@@ -11,7 +11,7 @@ Contract: :func:`save_model` writes::
      "created": ISO time}
 
 :func:`load_model_file` reads it back with the hardened JSON reader
-(:mod:`tsa_bench.documents`: a regular file of at most 64 MB, nesting, integer and
+(:mod:`tsa_bench.userfiles`: a regular file of at most 64 MB, nesting, integer and
 text limits) and raises :class:`ModelFileError` whose message starts with the file
 name and says what is wrong (missing file, not JSON, wrong format, unknown model,
 missing parameter, a parameter that is not a finite number or a list of them, a
@@ -80,7 +80,7 @@ def save_model(saved: SavedModel, path: str | Path) -> Path:
 
 def load_model_file(path: str | Path) -> SavedModel:
     """Read and check a model file; raise ModelFileError naming the file and the problem."""
-    from tsa_bench.documents import DocumentError, read_json
+    from tsa_bench.userfiles import DocumentError, read_json
 
     p = Path(path)
     if not p.exists():

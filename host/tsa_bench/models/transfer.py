@@ -22,8 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tsa_bench.models.fitting import evaluate, fit, quasi_static_mask
-from tsa_bench.store.reader import RunData
+from tsa_bench.models.fit_samples import quasi_static_mask
+from tsa_bench.models.fitting import evaluate, fit
+from tsa_bench.rundata import RunData
 
 
 @dataclass(frozen=True)

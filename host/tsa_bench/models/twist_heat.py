@@ -38,7 +38,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from tsa_bench.models.saved import SavedModel
-    from tsa_bench.store.reader import RunData
+    from tsa_bench.rundata import RunData
 
 ADDITIVE = "twist-heat-additive"
 COUPLED = "twist-heat-coupled"
@@ -98,14 +98,14 @@ class TwistHeatModel:
 
 # -- run files <-> saved model -------------------------------------------------
 def _inputs(run: RunData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from tsa_bench.models.fitting import _column
+    from tsa_bench.models.fit_samples import _column
 
     return _column(run, "turns"), _column(run, "heater_voltage"), _column(run, "length")
 
 
 def scored_mask(run: RunData) -> np.ndarray:
     """The quasi-static samples (motor stopped, last third of each segment) with finite inputs."""
-    from tsa_bench.models.fitting import quasi_static_mask
+    from tsa_bench.models.fit_samples import quasi_static_mask
 
     t, v, y = _inputs(run)
     return quasi_static_mask(run, "turns") & np.isfinite(t) & np.isfinite(v) & np.isfinite(y)
@@ -128,7 +128,7 @@ def predict_run(model: TwistHeatModel, run: RunData) -> tuple[np.ndarray, np.nda
 
 def score(model: TwistHeatModel, run: RunData) -> tuple[np.ndarray, dict[str, Any]]:
     """Prediction of ``run`` and its metrics (thesis metrics + ``rmse``, mm) on the scored samples."""
-    from tsa_bench.models.fitting import FitError
+    from tsa_bench.models.fit_samples import FitError
     from tsa_bench.models.metrics import compare
 
     pred, mask = predict_run(model, run)
@@ -141,7 +141,7 @@ def score(model: TwistHeatModel, run: RunData) -> tuple[np.ndarray, dict[str, An
 
 def fit_saved(name: str, runs: list[RunData], validate: list[RunData] | None = None) -> SavedModel:
     """Identify the ``name`` form on ``runs`` and score it on them and on ``validate``."""
-    from tsa_bench.models.fitting import FitError
+    from tsa_bench.models.fit_samples import FitError
     from tsa_bench.models.saved import SavedModel, param
 
     ts, vs, ys = [], [], []

@@ -13,7 +13,6 @@ Typical use::
 
 from tsa_bench.plan.actions import KINDS, Action, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle, TrackLength
 from tsa_bench.plan.errors import PlanError, PlanErrors
-from tsa_bench.plan.limits import Limits
 from tsa_bench.plan.loader import DEFAULT_SAMPLING_PERIOD_S, load_plan, load_plan_text
 from tsa_bench.plan.model import Plan, PlanSummary, Segments
 from tsa_bench.plan.report import format_duration, format_summary
@@ -23,7 +22,6 @@ __all__ = [
     "DEFAULT_SAMPLING_PERIOD_S",
     "Action",
     "Hold",
-    "Limits",
     "Move",
     "Plan",
     "PlanError",

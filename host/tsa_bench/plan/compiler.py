@@ -29,10 +29,10 @@ from yaml import Node
 
 from tsa_bench.plan.actions import Move, Prompt, Segment, TrackLength
 from tsa_bench.plan.errors import ErrorSink
-from tsa_bench.plan.limits import Limits
+from tsa_bench.benchdata.limits import Limits
 from tsa_bench.plan import model
 from tsa_bench.plan.model import Segments
-from tsa_bench.plan.steps import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
+from tsa_bench.plan.ops import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
 
 #: Upper bound on the expanded plan size (protects memory against e.g. nested huge counts).
 MAX_SEGMENTS = 1_000_000

@@ -21,10 +21,10 @@ from typing import Any
 import yaml
 from yaml import MappingNode, Node
 
-from tsa_bench.documents import DocumentError, parse_yaml, read_text_file
+from tsa_bench.userfiles import DocumentError, parse_yaml, read_text_file
 from tsa_bench.plan.compiler import compile_ops, outer_cycles
 from tsa_bench.plan.errors import ErrorSink, PlanError, PlanErrors
-from tsa_bench.plan.limits import Limits, loosening_problem
+from tsa_bench.benchdata.limits import Limits, loosening_problem
 from tsa_bench.plan.model import Plan, Segments
 from tsa_bench.plan.steps import (
     MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, MIN_SAMPLING_PERIOD_S, MotionDefaults, StepParser, scalar_value,
@@ -69,7 +69,7 @@ def _plan_error(exc: DocumentError) -> PlanError:
 
 
 def _compose(text: str, filename: str, sink: ErrorSink) -> Node | None:
-    """The checked node graph of the hardened YAML reader (:mod:`tsa_bench.documents`)."""
+    """The checked node graph of the hardened YAML reader (:mod:`tsa_bench.userfiles`)."""
     try:
         return parse_yaml(text, filename).root
     except DocumentError as exc:

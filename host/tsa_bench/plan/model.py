@@ -17,7 +17,7 @@ from typing import Any, overload
 
 from tsa_bench.motion import TrapezoidProfile
 from tsa_bench.plan.actions import KINDS, Hold, Move, Prompt, Segment, SetHeater, SetSampling, Settle, TrackLength
-from tsa_bench.plan.limits import Limits
+from tsa_bench.benchdata.limits import Limits
 
 
 #: Most expanded segments a :class:`Segments` keeps at once (in spans of its checkpoint size).

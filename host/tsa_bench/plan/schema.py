@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from tsa_bench.plan.limits import Limits
+from tsa_bench.benchdata.limits import Limits
 from tsa_bench.plan.steps import MAX_FOR_EACH_VALUES, MAX_HOLD_S, MAX_LOAD_G, MAX_SAMPLING_PERIOD_S, \
     MIN_SAMPLING_PERIOD_S
 

@@ -37,12 +37,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path, PurePath
-from typing import TypeAlias
 
 from yaml import MappingNode, Node, ScalarNode
 
-from tsa_bench.plan.actions import Action, Hold, Prompt, SetHeater, SetSampling, Settle
-from tsa_bench.plan.limits import Limits
+from tsa_bench.plan.actions import Hold, Prompt, SetHeater, SetSampling, Settle
+from tsa_bench.benchdata.limits import Limits
+from tsa_bench.plan.ops import ActionOp, ForEachOp, LostTwistOp, MoveOp, Op, RepeatOp
 from tsa_bench.plan.tracking_step import parse_track_length
 from tsa_bench.plan.twist_heat_step import parse_twist_heat
 from tsa_bench.plan.variables import NAME, UnknownVariable, Value, substitute
@@ -75,53 +75,6 @@ _MOVING_KINDS = frozenset({"move_to", "move_by", "rotation_sequence", "repeat", 
 # Stand-in rate/accel for a move whose own rate/accel was invalid: its target is still
 # range-checked, and a protocol with errors never becomes a Plan, so it is never used.
 _PLACEHOLDER_MOTION = (1.0, 1.0)
-
-
-@dataclass(frozen=True, eq=False)
-class MoveOp:
-    """A move whose absolute target is known (``relative=False``) or resolved at compile time."""
-
-    turns: float
-    relative: bool
-    rate_turns_per_s: float
-    accel_turns_per_s2: float
-    source: str
-    node: Node      # where twist-limit errors point
-    field: str
-
-
-@dataclass(frozen=True, eq=False)
-class ActionOp:
-    """A final action (hold, heater, sampling, prompt) copied as-is into the plan."""
-
-    action: Action
-    source: str
-
-
-@dataclass(frozen=True, eq=False)
-class RepeatOp:
-    """``body`` run ``count`` times; ``count`` is ``None`` when it was invalid (checked once)."""
-
-    count: int | None
-    body: tuple[Op, ...]
-    source: str     # "file.yaml:LINE" of the repeat step
-
-
-@dataclass(frozen=True, eq=False)
-class ForEachOp:
-    """One body per value of a ``for_each``, run in order (iteration i = cycle i)."""
-
-    bodies: tuple[tuple[Op, ...], ...]
-    source: str
-
-
-@dataclass(frozen=True, eq=False)
-class LostTwistOp:
-    """Stands for an invalid motion step: the twist after it is unknown, so later
-    relative moves are not range-checked (avoids follow-on errors)."""
-
-
-Op: TypeAlias = MoveOp | ActionOp | RepeatOp | ForEachOp | LostTwistOp
 
 
 @dataclass(frozen=True)

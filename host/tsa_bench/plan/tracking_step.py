@@ -38,7 +38,7 @@ from tsa_bench.plan.actions import TrackLength
 from tsa_bench.plan.yamlnodes import describe
 
 if TYPE_CHECKING:
-    from tsa_bench.plan.steps import Op, StepParser
+    from tsa_bench.plan.ops import Op, StepParsing
 
 KEYS = ("model", "length_mm", "hold_s", "targets", "tolerance_mm", "gain", "initial_mm_per_turn", "settle_s",
         "window_s", "max_step_turns", "rate_turns_per_s", "accel_turns_per_s2", "timeout_s", "on_timeout")
@@ -49,7 +49,7 @@ MAX_S = 7 * 24 * 3600.0
 def model_info(path: Path) -> tuple[tuple[float, float], str | None]:
     """(validity range in mm, training bench name) of a self-sensing model file; raises
     ModelFileError with the reason when it cannot be used for control."""
-    from tsa_bench.control import load_strain
+    from tsa_bench.models import load_strain
     from tsa_bench.models.saved import ModelFileError, load_model_file
 
     if _format(path) == load_strain.FORMAT:   # resistance and twist (load-robust)
@@ -76,7 +76,7 @@ def model_info(path: Path) -> tuple[tuple[float, float], str | None]:
 
 def _format(path: Path) -> str | None:
     """The ``format`` of a JSON model file (None when it cannot be read; the loader then says why)."""
-    from tsa_bench.documents import DocumentError, read_json
+    from tsa_bench.userfiles import DocumentError, read_json
 
     try:
         doc = read_json(path, what="model file")
@@ -85,10 +85,10 @@ def _format(path: Path) -> str | None:
     return doc.get("format") if isinstance(doc, dict) else None
 
 
-def parse_track_length(parser: StepParser, node: Node, field: str, source: str) -> list[Op] | None:
+def parse_track_length(parser: StepParsing, node: Node, field: str, source: str) -> list[Op] | None:
     """The ``track_length`` step as one action (None after reporting errors)."""
     from tsa_bench.models.saved import ModelFileError
-    from tsa_bench.plan.steps import ActionOp
+    from tsa_bench.plan.ops import ActionOp
 
     r = parser.reader
     fields = r.mapping(node, field, KEYS, required=("model",))
@@ -160,7 +160,7 @@ def parse_track_length(parser: StepParser, node: Node, field: str, source: str) 
                                  max_step, rate, accel, timeout, on_timeout, valid, bench), source)]
 
 
-def _targets(parser: StepParser, fields: dict[str, Node], node: Node, field: str
+def _targets(parser: StepParsing, fields: dict[str, Node], node: Node, field: str
              ) -> list[tuple[tuple[float, float], Node, str]] | None:
     """[((length_mm, hold_s), node of the length, its field)], or None after an error."""
     r = parser.reader

@@ -39,16 +39,16 @@ from yaml import Node
 from tsa_bench.plan.actions import HeaterLevel, Hold
 
 if TYPE_CHECKING:
-    from tsa_bench.plan.steps import Op, StepParser
+    from tsa_bench.plan.ops import Op, StepParsing
 
 KEYS = ("targets_turns", "voltages_V", "hold_s", "end_voltage_V", "rate_turns_per_s", "accel_turns_per_s2")
 #: Most sub-moves one step may have.
 MAX_SUB_MOVES = 10_000
 
 
-def parse_twist_heat(parser: StepParser, node: Node, field: str, source: str) -> list[Op] | None:
+def parse_twist_heat(parser: StepParsing, node: Node, field: str, source: str) -> list[Op] | None:
     """The ``twist_heat`` step as heater, move (and hold) operations (None after reporting errors)."""
-    from tsa_bench.plan.steps import ActionOp, LostTwistOp, MoveOp
+    from tsa_bench.plan.ops import ActionOp, LostTwistOp, MoveOp
 
     r = parser.reader
     fields = r.mapping(node, field, KEYS, required=("targets_turns", "voltages_V"))
@@ -93,7 +93,7 @@ def parse_twist_heat(parser: StepParser, node: Node, field: str, source: str) ->
     return ops
 
 
-def _list(parser: StepParser, fields: dict[str, Node], field: str, key: str, what: str) -> list[Node] | None:
+def _list(parser: StepParsing, fields: dict[str, Node], field: str, key: str, what: str) -> list[Node] | None:
     r = parser.reader
     if key not in fields:
         return None

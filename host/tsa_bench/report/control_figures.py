@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from tsa_bench.report.fig_common import DPI, pyplot, save, time_scale, title
-from tsa_bench.store import RunData
+from tsa_bench.rundata import RunData
 
 BAND_MM = 0.5
 
@@ -29,7 +29,7 @@ def has_tracking(run: RunData) -> bool:
 
 def fig_tracking(run: RunData, path: Path, dpi: int = DPI) -> str | None:
     from tsa_bench.control.evaluation import load_recoveries, target_figures
-    from tsa_bench.runner.samples import G_N_PER_G
+    from tsa_bench.units import G_N_PER_G
 
     if not has_tracking(run):
         return None

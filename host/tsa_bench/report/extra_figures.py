@@ -17,8 +17,8 @@ import numpy as np
 
 from tsa_bench.report.diagnose_report import decimate_minmax
 from tsa_bench.report.fig_common import DPI, pyplot, save, time_scale, title
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
-from tsa_bench.store import RunData
+from tsa_bench.rundocs import SAMPLE_COLUMNS
+from tsa_bench.rundata import RunData
 
 MAX_PANELS = 6
 MAX_PAIRS = 3

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tsa_bench.store import RunData
+from tsa_bench.rundata import RunData
 
 DPI = 150
 #: File formats a figure may be written in (matplotlib picks the backend from the suffix).

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 
 #: Root attributes shown first, in this order (docs/run-format.md).
 _FIRST = ("plan_name", "exit_status", "reason", "created", "backend", "firmware", "software", "duration_s",

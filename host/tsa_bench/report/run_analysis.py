@@ -1,6 +1,6 @@
 """Quantities the run figures show, computed from a run's samples (no plotting here).
 
-Contract: every function takes a :class:`~tsa_bench.store.RunData` (columns in contract
+Contract: every function takes a :class:`~tsa_bench.rundata.RunData` (columns in contract
 units: s, turn, mm, ohm, V, N) and works from the samples alone, so recorded,
 simulated and imported runs (which may lack ``/segments``) are treated alike. NaN
 marks a value that was not measured and is skipped, never plotted as zero.
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tsa_bench.store import RunData
+from tsa_bench.rundata import RunData
 
 #: Two readings of turns / voltage / load closer than these count as the same level.
 TOL = {"turns": 1e-6, "heater_voltage": 1e-6, "load": 1e-6}

@@ -1,6 +1,6 @@
 """Figures of one run, like those of the thesis (chapter 2), one function per kind.
 
-Contract: each ``fig_*`` function takes a :class:`~tsa_bench.store.RunData` and an output
+Contract: each ``fig_*`` function takes a :class:`~tsa_bench.rundata.RunData` and an output
 path, draws one PNG (Agg backend, axes in the contract's physical units) and returns a
 caption, or returns None without writing anything when the run lacks what the figure
 needs (the selector in :mod:`tsa_bench.report.run_report` asks first, so this is a
@@ -20,7 +20,7 @@ from tsa_bench.report.fig_common import (
 from tsa_bench.report.run_analysis import (
     cycle_table, motor_stops, plateaus, sample_cycles, span, stiffness_points,
 )
-from tsa_bench.store import RunData
+from tsa_bench.rundata import RunData
 
 _SERIES = (("turns", "twist", "turn"), ("length", "length", "mm"), ("resistance", "resistance", "ohm"),
            ("heater_voltage", "heater voltage", "V"), ("load", "load", "N"))

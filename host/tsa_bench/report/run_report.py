@@ -25,7 +25,8 @@ from tsa_bench.report.fig_common import DPI, FORMATS, Figure, finite_any_col
 from tsa_bench.report.html import write_index
 from tsa_bench.report.twist_heat_figures import fig_twist_heat, heated_twists
 from tsa_bench.report.run_analysis import cycle_table, motor_stops, plateaus, span, stiffness_points
-from tsa_bench.store import RunData, read_run
+from tsa_bench.rundata import RunData
+from tsa_bench.store import read_run
 
 #: kind -> (drawing function, thesis figure, what it needs)
 KINDS: dict[str, tuple[Callable[[RunData, Path], str | None], str]] = {

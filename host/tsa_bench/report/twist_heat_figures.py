@@ -21,7 +21,7 @@ import numpy as np
 
 from tsa_bench.report.fig_common import DPI, HEAT_COLOR, draw_series, pyplot, save, time_scale, title
 from tsa_bench.report.run_analysis import plateaus
-from tsa_bench.store import RunData
+from tsa_bench.rundata import RunData
 
 
 def _rests(run: RunData) -> list:

@@ -37,7 +37,8 @@ from scipy.optimize import least_squares, minimize
 
 from tsa_bench.reproduce.experiments import BENCH_DIR, PRESETS, Lab, preset_plant
 from tsa_bench.reproduce.manipulator import CONFIG as MANIPULATOR_FILE
-from tsa_bench.reproduce.measures import compute, measure_unit
+from tsa_bench.reproduce.measures import measure_unit
+from tsa_bench.reproduce.quantities import compute
 from tsa_bench.reproduce.plan import MANIPULATOR, CalibrationPlan, Fit
 from tsa_bench.reproduce.records import Record
 from tsa_bench.reproduce.table import residual

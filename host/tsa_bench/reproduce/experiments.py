@@ -38,7 +38,7 @@ from tsa_bench.reproduce.runs import history, step_duration_steps, twist_heat_st
 from tsa_bench.sim.history import simulate
 from tsa_bench.sim.kinematics import NEWTON_PER_GRAM
 from tsa_bench.sim.plant import plant_from_config
-from tsa_bench.store.reader import RunData
+from tsa_bench.rundata import RunData
 
 ROOT = Path(__file__).resolve().parents[3]
 BENCH_DIR = ROOT / "configs" / "bench"

@@ -172,11 +172,3 @@ def measure_unit(measure: dict[str, Any], conditions: dict[str, Any]) -> str:
             raise MeasureError(f"{measure['name']}: missing argument {key!r}")
     return spec.unit(measure, conditions)
 
-
-def compute(lab: Any, measure: dict[str, Any], conditions: dict[str, Any]) -> float:
-    """Value of a record's measure on ``lab`` (a :class:`~tsa_bench.reproduce.experiments.Lab`)."""
-    from tsa_bench.reproduce import quantities
-
-    fn = getattr(quantities, measure["name"])
-    args = {k: v for k, v in measure.items() if k != "name"}
-    return float(fn(lab, args, conditions))

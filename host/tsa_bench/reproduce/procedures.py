@@ -24,7 +24,8 @@ from typing import Any
 from tsa_bench.models.fitting import fit
 from tsa_bench.reproduce.runs import (history, simulate_history, step_duration_steps, twist_heat_steps,
                                       twist_sweep_steps, write_run)
-from tsa_bench.store.reader import RunData, read_run
+from tsa_bench.rundata import RunData
+from tsa_bench.store.reader import read_run
 
 DURATIONS_S = (2.4, 6.0, 17.0, 32.0, 98.0)
 TRAINING_S = (6.0, 32.0)

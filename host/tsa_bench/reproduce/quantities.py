@@ -6,16 +6,19 @@ s, N, deg, h).
 Contract: every function is ``f(lab, args, conditions) -> float`` and computes the
 quantity on the Lab's simulated experiments (cached there); the case fits (Preisach,
 polynomial, strain-resistance, self-sensing) are cached on the Lab too, so a table of
-many records costs one simulation and one fit per case.
+many records costs one simulation and one fit per case. :func:`compute` gives a record's
+measure (by its name) on a Lab.
 """
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
 
-from tsa_bench.models.fitting import fit, quasi_static_mask
+from tsa_bench.models.fit_samples import quasi_static_mask
+from tsa_bench.models.fitting import fit
 from tsa_bench.models.polynomial import PolynomialModel
 from tsa_bench.models.preisach import PreisachModel
 from tsa_bench.reproduce.experiments import (DURATIONS_S, LIFETIME_CYCLES, LOADS, SCHEME_LOADS, TRAINING_S, Lab,
@@ -414,3 +417,10 @@ def manipulator(lab: Lab, a: dict[str, Any], c: dict[str, Any]) -> float:
     from tsa_bench.reproduce.manipulator import manipulator_quantity
 
     return manipulator_quantity(lab, a["quantity"], a)
+
+
+def compute(lab: Any, measure: dict[str, Any], conditions: dict[str, Any]) -> float:
+    """Value of a record's measure on ``lab`` (a :class:`~tsa_bench.reproduce.experiments.Lab`)."""
+    fn = getattr(sys.modules[__name__], measure["name"])
+    args = {k: v for k, v in measure.items() if k != "name"}
+    return float(fn(lab, args, conditions))

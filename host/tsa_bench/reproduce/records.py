@@ -28,7 +28,7 @@ from typing import Any
 
 from yaml import Node
 
-from tsa_bench.documents import DocumentError, read_yaml
+from tsa_bench.userfiles import DocumentError, read_yaml
 from tsa_bench.plan.errors import ErrorSink, PlanError
 from tsa_bench.plan.yamlnodes import Reader, describe
 from tsa_bench.units import UnitError, parse_unit
@@ -100,7 +100,7 @@ class Record:
 
 
 def read_document(path: Path, what: str, sink: ErrorSink) -> Node | None:
-    """The file's YAML node graph through the one hardened reader (tsa_bench.documents), or None
+    """The file's YAML node graph through the one hardened reader (tsa_bench.userfiles), or None
     with the problem (file:line:col) recorded in ``sink``."""
     try:
         return read_yaml(path, what=what).root

@@ -28,7 +28,8 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from tsa_bench.reproduce.measures import MeasureError, compute, measure_unit
+from tsa_bench.reproduce.measures import MeasureError, measure_unit
+from tsa_bench.reproduce.quantities import compute
 from tsa_bench.reproduce.plan import CalibrationPlan
 from tsa_bench.reproduce.records import Record
 from tsa_bench.units import UnitError, convert

@@ -18,7 +18,7 @@ import yaml
 from yaml import MappingNode, ScalarNode, SequenceNode
 
 from tsa_bench.bench import BenchConfigError, parse_bench
-from tsa_bench.documents import DocumentError, parse_yaml
+from tsa_bench.userfiles import DocumentError, parse_yaml
 from tsa_bench.store.replace import replacing
 
 SECTIONS = {"position": "position_sensor", "resistance": "resistance_sensor"}

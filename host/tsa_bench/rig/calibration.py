@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.protocol import msg
 
 #: How far apart (in counts, peak to peak) the points must lie for a fit, at least; and

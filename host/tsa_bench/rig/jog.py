@@ -31,7 +31,7 @@ import numpy as np
 from tsa_bench.protocol import msg
 from tsa_bench.rig.link import RigError, RigLink
 from tsa_bench.runner.commands import WIRE_SEGMENTS
-from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SegmentRecord
+from tsa_bench.rundocs import EventRecord, RunStart, RunStop, SegmentRecord
 from tsa_bench.runner.samples import row, sample_block
 
 KINDS = ("move_by", "move_to", "rate", "heater", "wait", "stop", "quit")

@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
 from tsa_bench.protocol import msg
 from tsa_bench.runner.commands import NO_SEGMENT

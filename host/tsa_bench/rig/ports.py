@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 
 #: (vendor id, product id) -> board: the genuine Arduino Mega 2560 boards.
 MEGA_IDS: dict[tuple[int, int], str] = {

@@ -1,4 +1,4 @@
-"""Run engine: executes a plan on a bench and emits documents to consumers.
+"""Run engine: executes a plan on a bench and emits run documents (:mod:`tsa_bench.rundocs`) to consumers.
 
 The names below are imported on first use (PEP 562), so importing one submodule
 (``tsa_bench.runner.commands`` for ``validate``, ``tsa_bench.runner.interrupts``)
@@ -12,8 +12,6 @@ from typing import TYPE_CHECKING, Any
 
 #: public name -> the submodule that defines it
 _WHERE = {
-    "SAMPLE_COLUMNS": "documents", "EventRecord": "documents", "RunConsumer": "documents", "RunStart": "documents",
-    "RunStop": "documents", "SampleBlock": "documents", "SegmentRecord": "documents",
     "PlanRejected": "checks", "check_plan_against_device": "checks", "Runner": "engine",
     "AutoOperator": "operator", "ConsoleOperator": "operator", "Operator": "operator",
 }
@@ -22,9 +20,6 @@ __all__ = list(_WHERE)
 
 if TYPE_CHECKING:
     from tsa_bench.runner.checks import PlanRejected, check_plan_against_device
-    from tsa_bench.runner.documents import (
-        SAMPLE_COLUMNS, EventRecord, RunConsumer, RunStart, RunStop, SampleBlock, SegmentRecord,
-    )
     from tsa_bench.runner.engine import Runner
     from tsa_bench.runner.operator import AutoOperator, ConsoleOperator, Operator
 

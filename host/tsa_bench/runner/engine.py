@@ -3,7 +3,7 @@
 Contract: :meth:`Runner.run` keeps the device's command queue fed from the plan, one
 device command per plan segment (operator prompts are handled on the host once the
 device is idle), converts samples to physical units with the bench calibration, and
-emits :mod:`tsa_bench.runner.documents` to every consumer. It never sleeps on wall
+emits :mod:`tsa_bench.rundocs` to every consumer. It never sleeps on wall
 time for device-timed work: holds and moves are timed by the device, and the runner
 only waits for bytes. It always ends with ``on_stop``: "success" when every segment
 is done, "aborted" on Ctrl-C (after an immediate STOP, which also turns the heater
@@ -42,14 +42,14 @@ from array import array
 import time
 from typing import NamedTuple, Sequence
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
 from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.protocol.blocks import refusal_reason
 from tsa_bench.runner.checks import PlanRejected, check_plan_against_device  # noqa: F401 (re-exported)
 from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
-from tsa_bench.runner.documents import (
+from tsa_bench.rundocs import (
     EventRecord, RunConsumer, RunStart, RunStop, SegmentRecord, StorageFull,
 )
 from tsa_bench.runner.interrupts import Interrupts
@@ -57,7 +57,8 @@ from tsa_bench.runner.operator import Operator
 from tsa_bench.runner.pacing import Pacing
 from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
-from tsa_bench.runner.samples import G_N_PER_G, length_mm, resistance_ohm, sample_block
+from tsa_bench.runner.samples import length_mm, resistance_ohm, sample_block
+from tsa_bench.units import G_N_PER_G
 from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
 from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
 

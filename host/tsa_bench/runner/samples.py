@@ -3,8 +3,8 @@
 Contract: :func:`sample_block` takes rows ``(t_us, step_position, position_raw,
 resistance_raw, adc_flags, heater_mV, motor_moving, segment, counter, load_g)`` as
 received (device time in us since boot, raw counts) and returns a
-:class:`~tsa_bench.runner.documents.SampleBlock` with every column of
-:data:`~tsa_bench.runner.documents.SAMPLE_COLUMNS`: time in s from ``t0_us``, twist in
+:class:`~tsa_bench.rundocs.SampleBlock` with every column of
+:data:`~tsa_bench.rundocs.SAMPLE_COLUMNS`: time in s from ``t0_us``, twist in
 turns, length in mm and resistance in ohm through the bench calibration (NaN where the
 device flags the reading invalid or not measured), heater voltage in V, load in N
 (NaN when undeclared). The runner and the rig commands (jog) use the same conversion.
@@ -17,11 +17,10 @@ from itertools import chain
 
 import numpy as np
 
-from tsa_bench.bench import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.protocol import msg
-from tsa_bench.runner.documents import SAMPLE_COLUMNS, SampleBlock
-
-G_N_PER_G = 9.80665e-3        # weight of one gram, N
+from tsa_bench.rundocs import SAMPLE_COLUMNS, SampleBlock
+from tsa_bench.units import G_N_PER_G
 
 
 def row(s: msg.Sample, segment: int, load_g: float) -> tuple:

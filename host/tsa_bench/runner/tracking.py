@@ -33,7 +33,7 @@ from tsa_bench.control.controller import IDLE, STATES, StepController
 from tsa_bench.plan import Plan, Segment, SetSampling, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.runner.commands import WIRE_SEGMENTS
-from tsa_bench.runner.documents import SampleBlock
+from tsa_bench.rundocs import SampleBlock
 
 if TYPE_CHECKING:
     from tsa_bench.runner.engine import Runner
@@ -83,7 +83,7 @@ class Tracking:
     def _estimator(self, a: TrackLength) -> Any:
         key = (a.model_path, a.window_s)
         if key not in self._estimators:  # (scipy and the models load only for a plan that tracks)
-            from tsa_bench.control import load_strain
+            from tsa_bench.models import load_strain
             from tsa_bench.control.estimator import OnlineLengthEstimator, TwistResistanceEstimator
             from tsa_bench.models.fitting import from_saved
             from tsa_bench.models.saved import ModelFileError, load_model_file

@@ -72,7 +72,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from tsa_bench.bench.config import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.protocol import catalogue as msg
 from tsa_bench.protocol.blocks import (
     ADS1115_SPS, SAMPLES_PER_BLOCK, SINGLE_SHOT_MIN_PERIOD_US, BlockBuilder, conversions_per_sample, frame_bytes, sampling_refusal,

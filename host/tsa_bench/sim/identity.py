@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from tsa_bench.bench.config import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.protocol import catalogue as msg
 
 #: Firmware version the simulation reports (major, minor, patch).

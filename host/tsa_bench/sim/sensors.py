@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from tsa_bench.bench.config import PositionCalibration, ResistanceCalibration
+from tsa_bench.benchdata import PositionCalibration, ResistanceCalibration
 from tsa_bench.protocol.catalogue import AdcFlags
 
 INT16_MIN, INT16_MAX = -32768, 32767

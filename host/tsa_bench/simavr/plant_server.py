@@ -22,7 +22,7 @@ import socket
 import struct
 import threading
 
-from tsa_bench.bench.config import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.sim.plant import plant_from_config
 from tsa_bench.sim.sensors import SimSensors
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tsa_bench.runner.documents import SAMPLE_COLUMNS
+from tsa_bench.rundocs import SAMPLE_COLUMNS
 from tsa_bench.store.hdf5 import SEGMENT_UNITS
 from tsa_bench.store.reader import read_run
 

@@ -1,6 +1,6 @@
 """HDF5 run writer: the run-file contract of docs/run-format.md, written crash-safe.
 
-Contract: :class:`RunWriter` is a :class:`~tsa_bench.runner.documents.RunConsumer`.
+Contract: :class:`RunWriter` is a :class:`~tsa_bench.rundocs.RunConsumer`.
 ``on_start`` creates the file with ``exit_status`` "running"; samples, segments and
 events are buffered in memory and written, then the file is flushed, at every
 segment end, at least every ``flush_interval_s`` of wall time (default 1 s) and
@@ -41,7 +41,7 @@ import numpy as np
 from h5py import h5s
 
 import tsa_bench
-from tsa_bench.runner.documents import (
+from tsa_bench.rundocs import (
     SAMPLE_COLUMNS, EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord,
 )
 from tsa_bench.store.space import HEADER_BYTES, StorageFull, ensure_room, flush_bytes

@@ -17,7 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from tsa_bench.documents import DocumentError, check_regular_file
+from tsa_bench.userfiles import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import FORMAT
 from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
 from tsa_bench.store.probe import check_hdf5_terminates

@@ -48,8 +48,8 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from tsa_bench.documents import DocumentError, parse_json
-from tsa_bench.runner.documents import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
+from tsa_bench.userfiles import DocumentError, parse_json
+from tsa_bench.rundocs import EventRecord, RunStart, RunStop, SampleBlock, SegmentRecord
 
 MAGIC = b"TSALIVE1"
 VERSION = 3

@@ -23,7 +23,7 @@ whose one-line message names the file and exactly what is wrong:
   a /segment_texts that is not a 1-D text dataset, or a code naming no kind or text;
 * damaged datasets or attributes that HDF5 cannot read.
 
-It returns a :class:`RunData` holding every sample column (required and extra), the
+It returns a :class:`~tsa_bench.rundata.RunData` holding every sample column (required and extra), the
 segment and event tables normalised to one in-memory layout, :data:`SEGMENT_DTYPE`
 with texts in every row, whichever layout the file has (None when absent; optional
 fields missing in a file from another tool are filled: ``completed`` 1, ``cycle`` -1,
@@ -34,14 +34,14 @@ from CSV are welcome as long as they meet the contract.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
 
-from tsa_bench.documents import DocumentError, check_regular_file
+from tsa_bench.rundata import RunData
+from tsa_bench.userfiles import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import EVENT_DTYPE, FORMAT, SEGMENT_DTYPE, SEGMENT_ROW_DTYPE
 from tsa_bench.store.probe import check_hdf5_terminates
 
@@ -83,32 +83,6 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return _plain(value.reshape(-1)[0]) if value.size == 1 else [_plain(v) for v in value.reshape(-1)[:100]]
     return value
-
-
-@dataclass(frozen=True)
-class RunData:
-    """One run in memory. ``samples[name]`` are equal-length arrays in ``units[name]``."""
-
-    path: str
-    attrs: dict[str, Any]
-    samples: dict[str, np.ndarray]
-    units: dict[str, str]
-    segments: np.ndarray | None = None
-    events: np.ndarray | None = None
-    protocol_text: str = ""
-    bench_text: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.samples["t"])
-
-    @property
-    def t_s(self) -> np.ndarray:
-        return self.samples["t"]
-
-    @property
-    def exit_status(self) -> str:
-        return str(self.attrs.get("exit_status", ""))
 
 
 class _File:

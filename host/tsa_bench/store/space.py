@@ -19,7 +19,7 @@ import os
 import resource
 from pathlib import Path
 
-from tsa_bench.runner.documents import StorageFull
+from tsa_bench.rundocs import StorageFull
 
 __all__ = ["StorageFull", "available_bytes", "ensure_room", "flush_bytes", "run_bytes"]
 

@@ -40,7 +40,7 @@ import numpy as np
 from yaml import MappingNode, ScalarNode
 
 from tsa_bench import __version__
-from tsa_bench.documents import DocumentError, YamlDocument, read_yaml
+from tsa_bench.userfiles import DocumentError, YamlDocument, read_yaml
 from tsa_bench.sweep import schema
 from tsa_bench.sweep.effects import NAMES as EFFECT_NAMES
 

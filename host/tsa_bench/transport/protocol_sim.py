@@ -43,8 +43,9 @@ from pathlib import Path
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-from tsa_bench.bench.config import CONFIG_DIR, BenchConfig, load_bench
-from tsa_bench.documents import DocumentError, read_text_file
+from tsa_bench.bench.config import CONFIG_DIR, load_bench
+from tsa_bench.benchdata import BenchConfig
+from tsa_bench.userfiles import DocumentError, read_text_file
 from tsa_bench.protocol.codec import Frame, MessageDecoder, encode
 from tsa_bench.protocol.catalogue import SPEC_BY_CLASS
 from tsa_bench.sim.device import SimDevice, frame_bytes

@@ -29,7 +29,7 @@ import time
 import tty
 from collections.abc import Callable
 
-from tsa_bench.bench.config import BenchConfig
+from tsa_bench.benchdata import BenchConfig
 from tsa_bench.sim.device import SimDevice
 from tsa_bench.transport.protocol_sim import Pacer
 

@@ -4,7 +4,7 @@ models), with limits that make any input safe to read.
 
 Typical use::
 
-    from tsa_bench.documents import DocumentError, read_yaml
+    from tsa_bench.userfiles import DocumentError, read_yaml
 
     doc = read_yaml(path, what="bench file")   # raises DocumentError "file:line:col: message"
     data = doc.data()                          # plain dict/list/str/int/float/bool/None
@@ -14,10 +14,10 @@ See :mod:`.yaml_reader` for the limits (size, depth, alias expansion, integer di
 lone surrogates, tags) and :mod:`.files` for what counts as a readable file.
 """
 
-from tsa_bench.documents.errors import DocumentError
-from tsa_bench.documents.files import check_regular_file, read_text_file
-from tsa_bench.documents.json_reader import JsonLimits, parse_json, read_json
-from tsa_bench.documents.yaml_reader import YamlDocument, YamlLimits, parse_yaml, read_yaml
+from tsa_bench.userfiles.errors import DocumentError
+from tsa_bench.userfiles.files import check_regular_file, read_text_file
+from tsa_bench.userfiles.json_reader import JsonLimits, parse_json, read_json
+from tsa_bench.userfiles.yaml_reader import YamlDocument, YamlLimits, parse_yaml, read_yaml
 
 __all__ = ["DocumentError", "check_regular_file", "read_text_file", "JsonLimits", "parse_json", "read_json",
            "YamlDocument", "YamlLimits", "parse_yaml", "read_yaml"]

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from tsa_bench.models.transient import decay, fit_decay, hold_curves
-from tsa_bench.store.reader import RunData
+from tsa_bench.rundata import RunData
 
 FORMAT = "tsa-bench/load-strain-model"
 #: The decay after a stop is taken as settled from this time on (s; thesis 2.5.2: about two minutes).
@@ -188,7 +188,7 @@ def save(model: LoadStrainModel, path: str | Path) -> None:
 
 def load(path: str | Path) -> LoadStrainModel:
     """Read a model file; LoadStrainError naming the file and the problem."""
-    from tsa_bench.documents import DocumentError, read_json
+    from tsa_bench.userfiles import DocumentError, read_json
 
     p = Path(path)
     try:

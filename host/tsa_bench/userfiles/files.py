@@ -16,7 +16,7 @@ import os
 import stat
 from pathlib import Path
 
-from tsa_bench.documents.errors import DocumentError, position_of
+from tsa_bench.userfiles.errors import DocumentError, position_of
 
 #: Default size limit for text documents a person writes (protocols, bench files, ...).
 MAX_TEXT_BYTES = 4 * 1024 * 1024

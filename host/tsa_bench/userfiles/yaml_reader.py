@@ -2,7 +2,7 @@
 
 Contract of :func:`parse_yaml` / :func:`read_yaml`: the text is composed with PyYAML's
 safe loader into a node graph (positions kept) and refused, with a
-:class:`~tsa_bench.documents.errors.DocumentError` ``"file:line:col: message"``, when
+:class:`~tsa_bench.userfiles.errors.DocumentError` ``"file:line:col: message"``, when
 
 * it is larger than ``max_bytes`` or not strict UTF-8 (files only), or not valid YAML;
 * collections nest deeper than ``max_depth``, counted as written and again with
@@ -36,8 +36,8 @@ from yaml import MappingNode, Node, ScalarNode, SequenceNode
 from yaml.constructor import SafeConstructor
 from yaml.error import Mark
 
-from tsa_bench.documents.errors import DocumentError, position_of
-from tsa_bench.documents.files import MAX_TEXT_BYTES, decode_text, read_bytes_file
+from tsa_bench.userfiles.errors import DocumentError, position_of
+from tsa_bench.userfiles.files import MAX_TEXT_BYTES, decode_text, read_bytes_file
 
 STR, INT, FLOAT, BOOL, NULL = (f"tag:yaml.org,2002:{t}" for t in ("str", "int", "float", "bool", "null"))
 SEQ, MAP, MERGE = "tag:yaml.org,2002:seq", "tag:yaml.org,2002:map", "tag:yaml.org,2002:merge"

@@ -4,7 +4,7 @@ Contract of :func:`read_json` / :func:`parse_json`: a regular file of at most
 ``max_bytes`` (see :mod:`.files`), strict UTF-8, valid JSON (``NaN`` and
 ``Infinity`` allowed: models are saved with them), nested at most ``max_depth`` deep,
 integers of at most ``max_int_digits`` digits, no lone surrogates in any text or
-key. Anything else raises :class:`~tsa_bench.documents.errors.DocumentError` with
+key. Anything else raises :class:`~tsa_bench.userfiles.errors.DocumentError` with
 line and column where JSON gives them.
 """
 
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tsa_bench.documents.errors import DocumentError
-from tsa_bench.documents.files import decode_text, read_bytes_file
+from tsa_bench.userfiles.errors import DocumentError
+from tsa_bench.userfiles.files import decode_text, read_bytes_file
 
 
 @dataclass(frozen=True)

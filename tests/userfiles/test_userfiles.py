@@ -1,4 +1,4 @@
-"""The hardened reader every user file goes through (tsa_bench.documents)."""
+"""The hardened reader every user file goes through (tsa_bench.userfiles)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from tsa_bench.documents import DocumentError, YamlLimits, parse_json, parse_yaml, read_json, read_text_file, read_yaml
+from tsa_bench.userfiles import DocumentError, YamlLimits, parse_json, parse_yaml, read_json, read_text_file, read_yaml
 
 BOMB = ("a: &a [x,x,x,x,x,x,x,x,x]\n" + "".join(
     f"{c}: &{c} [{', '.join([f'*{p}'] * 9)}]\n" for p, c in zip("abcdefgh", "bcdefghi")))
