@@ -124,16 +124,17 @@ def test_the_gate_turns_down_an_improvement_the_held_out_data_do_not_support():
     assert not gate(good, own_train=0.01, own=None, outputs=("length", "resistance"))[0]
 
 
-def _holds(rng, offsets_of, n_holds=40, per=300):
+def _holds(rng, offsets_of, n_holds=40, per=300, bases=None, whole=True):
     """A residual of ``n_holds`` holds with offsets ``offsets_of(twist, index)`` and white noise."""
-    twist = np.repeat(np.round(rng.uniform(0, 40, n_holds)), per)
+    twist = rng.uniform(0, 40, n_holds)
+    twist = np.repeat(np.round(twist) if whole else twist, per)
     groups = np.repeat(np.arange(n_holds), per)
     res = offsets_of(twist[::per], np.arange(n_holds))[groups] + rng.normal(0, 1.0, len(groups))
     t = np.arange(len(groups)) * 0.1
     train = np.repeat(np.arange(n_holds) % 3 != 0, per)
     noise = Noise(sigma=1.0, step=0.0, rms=1.0, n=len(groups))
     return variance_component("resistance", res, train, ~train, groups, twist, np.full(len(t), 500.0), t, noise,
-                              level=200.0 - twist)
+                              bases=bases(twist) if bases else None, level=200.0 - twist)
 
 
 def test_random_hold_offsets_are_a_named_variance_component_and_a_misfit_is_not():
@@ -146,3 +147,26 @@ def test_random_hold_offsets_are_a_named_variance_component_and_a_misfit_is_not(
     assert not wave.named and wave.follows, wave.to_json()
     small = _holds(np.random.default_rng(6), lambda tw, k: 0.1 * draws[k])
     assert not small.named
+
+
+def test_hold_offsets_that_drift_from_hold_to_hold_or_follow_a_signal_are_not_settling():
+    """Offsets that change slowly with the hold's order (a drift seen hold by hold) and offsets
+    that follow the motor angle (an eccentric shaft stands still in each hold) are misfits."""
+    slow = _holds(np.random.default_rng(7), lambda tw, k: 3.0 * np.sin(2 * np.pi * k / 30.0))
+    assert not slow.named and "hold order" in slow.follows, slow.to_json()
+
+    def angle(twist):
+        a = 2 * np.pi * twist
+        return {"motor_angle": np.column_stack([np.sin(a), np.cos(a)])}
+    ecc = _holds(np.random.default_rng(8), lambda tw, k: 3.0 * np.sin(2 * np.pi * tw), bases=angle, whole=False)
+    assert not ecc.named and "motor_angle" in ecc.follows, ecc.to_json()
+
+
+def test_a_residual_that_follows_an_input_is_not_called_settling(tmp_path, model):
+    """A hidden resistance hysteresis leaves hold offsets that look random hold by hold, but the
+    residual follows the twist direction sample by sample: not a variance component."""
+    info = generate(tmp_path / "rh.h5", ("resistance_hysteresis",), seed=2, short=True)
+    result = diagnose([read_run(info["path"])], model, max_causes=0)
+    assert "resistance_settling" not in result.causes, (result.summary, result.components)
+    comp = next(c for c in result.components if c["output"] == "resistance")
+    assert not comp["named"] and any("follows" in f for f in comp["offsets_follow"]), comp

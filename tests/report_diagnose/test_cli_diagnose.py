@@ -62,6 +62,19 @@ def test_missing_model_file(tmp_path):
     assert res.exit_code == 2 and "absent.yaml" in res.output
 
 
+def test_a_validation_run_must_not_be_a_diagnosed_one_and_predict_options_fit_the_file(tmp_path):
+    from tsa_bench.cli.models import predict_cmd
+
+    write_minimal_run(tmp_path / "good.h5", n=400)
+    res = invoke(tmp_path / "good.h5", "--validate", tmp_path / "good.h5", "--out", tmp_path / "o")
+    assert res.exit_code == 2 and "validation run must not be one of the runs" in res.output
+    assert not (tmp_path / "o").exists()
+    model = ROOT / "configs" / "bench" / "sim-baseline.yaml"
+    bad = CliRunner().invoke(predict_cmd, [str(model), str(tmp_path / "good.h5"), "--write-prediction",
+                                           str(tmp_path / "p.h5")])
+    assert bad.exit_code == 2 and "saved fit model" in bad.output and not (tmp_path / "p.h5").exists()
+
+
 def test_bad_holdout(tmp_path):
     write_minimal_run(tmp_path / "good.h5", n=400)
     res = invoke(tmp_path / "good.h5", "--holdout", "bogus:spec", "--out", tmp_path / "o")
