@@ -8,7 +8,7 @@ is never changed); the analysis tests are run against that copy
 is reported as SURVIVED and the script exits 1; a mutation whose pattern is no longer in
 the source (the code moved on) exits 2, so the script cannot pass by missing its target.
 
-    python3 scripts/diagnose_mutations.py            # every mutation, the analysis tests
+    python3 scripts/diagnose_mutations.py            # every mutation, the analysis tests (safeguards first)
     python3 scripts/diagnose_mutations.py --fast     # stop each run at its first failure
     python3 scripts/diagnose_mutations.py --only gate-removed --tests tests/analysis/test_diagnose_safeguards.py
 
@@ -35,7 +35,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "host" / "tsa_bench"
-TESTS = ["tests/analysis"]
+#: the analysis tests, the safeguards' own first (with --fast a run stops at its first failure)
+TESTS = ["tests/analysis/test_diagnose_safeguards.py", "tests/analysis/test_diagnose_second.py", "tests/analysis"]
 
 #: name -> (file under host/tsa_bench, exact text, replacement)
 MUTATIONS: dict[str, tuple[str, str, str]] = {
@@ -91,7 +92,8 @@ def failing_tests(copy: Path, tests: list[str], fast: bool) -> tuple[list[str], 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", action="append", choices=sorted(MUTATIONS), help="run this mutation only (repeatable)")
-    ap.add_argument("--tests", nargs="+", default=TESTS, help="test paths (default: tests/analysis)")
+    ap.add_argument("--tests", nargs="+", default=TESTS, help="test paths (default: tests/analysis, the safeguard and "
+                    "second-generator tests first)")
     ap.add_argument("--fast", action="store_true", help="stop each test run at its first failure")
     args = ap.parse_args()
     names = args.only or list(MUTATIONS)

@@ -18,9 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import numpy as np
 
+from tests.analysis.runfiles import write_contract_run
 from tests.analysis.second import effects as fx
 from tests.analysis.second.protocols import PROTOCOLS, Inputs, segment_rows
 from tests.analysis.second.rigs import GRAVITY, RIGS, Rig, helix_length_mm, resistance_ohm
@@ -82,19 +82,9 @@ def write(path: str | Path, h: Inputs, length: np.ndarray, res: np.ndarray) -> P
             "heater_voltage": (np.zeros(n), "V"), "load": (h.load_g * GRAVITY / 1000.0, "N"),
             "segment": (h.segment, "1"), "motor_moving": (h.moving.astype(np.uint8), "1"),
             "counter": (np.arange(n, dtype=np.uint32), "1")}
-    p = Path(path)
-    with h5py.File(p, "w") as f:
-        f.attrs.update({"format": "tsa-bench/run", "format_version": "1.0", "created": "2025-06-01T09:00:00+00:00",
-                        "backend": "import", "firmware": "", "exit_status": "success",
-                        "reason": "second independent generator"})
-        g = f.create_group("samples")
-        for name, (a, unit) in cols.items():
-            g.create_dataset(name, data=a).attrs["units"] = unit
-        st = h5py.string_dtype()
-        dt = np.dtype([("index", "i4"), ("kind", st), ("t_start", "f8"), ("t_end", "f8"), ("completed", "u1"),
-                       ("cycle", "i4"), ("source", st), ("params", st)])
-        f.create_dataset("segments", data=np.array(segment_rows(h), dtype=dt))
-    return p
+    return write_contract_run(path, cols, segment_rows(h), {
+        "created": "2025-06-01T09:00:00+00:00", "backend": "import", "firmware": "", "exit_status": "success",
+        "reason": "second independent generator"})
 
 
 def make(name: str, path: str | Path, seed: int, minutes: float = 12.0) -> Case:

@@ -67,12 +67,16 @@ class _Tape:
         return Inputs(a[:, 0], a[:, 1], a[:, 2], a[:, 3].astype(bool), a[:, 4].astype(int), self.segments)
 
 
-def pyramid(rig: Rig, seed: int, minutes: float = 12.0) -> Inputs:
-    rng = np.random.default_rng(seed)
-    top = rig.top_fraction * min(full_twist_turns(rig, m) for m in rig.loads_g)
+def _start(rig: Rig, seed: int, first_hold_s: float) -> tuple[np.random.Generator, float, _Tape]:
+    """The seeded draws, the top twist (a share of the fully twisted one under the heaviest load), the tape."""
     tape = _Tape(rig.rate_hz, rig.loads_g[0])
+    tape.hold(first_hold_s)
+    return np.random.default_rng(seed), rig.top_fraction * min(full_twist_turns(rig, m) for m in rig.loads_g), tape
+
+
+def pyramid(rig: Rig, seed: int, minutes: float = 12.0) -> Inputs:
+    rng, top, tape = _start(rig, seed, 25.0)
     budget = minutes * 60.0
-    tape.hold(25.0)
     scale = 1.0
     while tape.now < budget:
         for load in rig.loads_g:
@@ -103,11 +107,8 @@ def pyramid(rig: Rig, seed: int, minutes: float = 12.0) -> Inputs:
 
 
 def sweep(rig: Rig, seed: int, minutes: float = 12.0) -> Inputs:
-    rng = np.random.default_rng(seed)
-    top = rig.top_fraction * min(full_twist_turns(rig, m) for m in rig.loads_g)
-    tape = _Tape(rig.rate_hz, rig.loads_g[0])
+    rng, top, tape = _start(rig, seed, 30.0)
     budget = minutes * 60.0
-    tape.hold(30.0)
     k = 0
     while tape.now < budget:
         load = rig.loads_g[k % len(rig.loads_g)]
