@@ -14,24 +14,10 @@ during a move. Amplitudes and hold times are drawn from the seed.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
-
 import numpy as np
 
+from tests.analysis.foreign.walks import History as Inputs   # the input history's container, not its equations
 from tests.analysis.second.rigs import Rig, full_twist_turns
-
-
-@dataclass
-class Inputs:
-    t: np.ndarray
-    turns: np.ndarray
-    load_g: np.ndarray
-    moving: np.ndarray
-    segment: np.ndarray
-    segments: list = field(default_factory=list)     # (index, kind, t_start, t_end, params)
-
-    def __len__(self) -> int:
-        return len(self.t)
 
 
 class _Tape:
@@ -64,7 +50,8 @@ class _Tape:
 
     def done(self) -> Inputs:
         a = np.array(self.rows)
-        return Inputs(a[:, 0], a[:, 1], a[:, 2], a[:, 3].astype(bool), a[:, 4].astype(int), self.segments)
+        return Inputs(a[:, 0], a[:, 1], np.zeros(len(a)), a[:, 2], a[:, 3].astype(bool), a[:, 4].astype(int),
+                      self.segments)
 
 
 def _start(rig: Rig, seed: int, first_hold_s: float) -> tuple[np.random.Generator, float, _Tape]:
