@@ -14,6 +14,7 @@ during a move. Amplitudes and hold times are drawn from the seed.
 from __future__ import annotations
 
 import json
+
 import numpy as np
 
 from tests.analysis.foreign.walks import History as Inputs   # the input history's container, not its equations
