@@ -36,9 +36,10 @@ EXAMPLES = {
     "ACK": msg.Ack(0x1234, 0x10, 0, 15),
     "SAMPLE": msg.Sample(123_456, 9_000_000_000, 80_000, 21_345, -262_144, 4, 0, 1, 11_920),
     "EVENT": msg.Event(42_000_000, 3, 7, 1, 0),
-    "QUEUE_STATUS": msg.QueueStatus(1_000_000, 16, 0, 0, 0, 1, -6_400, 2, 300, 1, 65_535),
+    "QUEUE_STATUS": msg.QueueStatus(1_000_000, 16, 0, 0, 0, 1 | 8, -6_400, 2, 300, 1, 65_535, 4_210, 1_162_791, 3),
     "SAMPLE_BLOCK": msg.SampleBlock(7_000, 12_000_000_000, -1_600, 32_000, 2 | 4, 0, 11_921, 1, 524_287, 2,
                                     (msg.SampleBlockEntry(1_163, 19, 1_500, 2), msg.SampleBlockEntry(1_162, -3, -120, 3))),
+    "ARM_RESET": msg.ArmReset(),
 }
 
 

@@ -3,12 +3,15 @@
 
 Usage: scripts/isr_cycles.py build/tsa_bench.elf [--mhz 16]
 
-For the step-timer ISR (TIMER1_COMPA, vector 17 on the ATmega2560) and the UART0 RX
-ISR (USART0_RX, vector 25) it disassembles the ELF with avr-objdump -d, builds the
-control-flow graph from the handler's entry and finds the longest path to `reti`
-(calls are followed and charged with the callee's own longest path). The vector
-numbers are checked against avr-libc's header and against the vector table in the ELF.
-It also checks, on the shortest path, that the step ISR keeps STEP high >= 1 us.
+For the step-timer ISR (TIMER1_COMPA, vector 17 on the ATmega2560), the UART0 RX ISR
+(USART0_RX, vector 25), the heater dither (TIMER2_COMPA, 13), the ADS1115's ALERT/RDY
+edge (INT4, 5) and the TWI read it starts (TWI, 39) it disassembles the ELF with
+avr-objdump -d, builds the control-flow graph from the handler's entry and finds the
+longest path to `reti` (calls are followed and charged with the callee's own longest
+path). The vector numbers are checked against avr-libc's header and against the vector
+table in the ELF. It also checks, on the shortest path, that the step ISR keeps STEP
+high >= 1 us, and fails when the step ISR's worst case exceeds --step-budget cycles
+(150: about Klipper's AVR step path; 15 % of the CPU at 16,000 steps/s).
 
 Cycle costs are the AVR instruction set manual's for the ATmega2560 (AVRe+, 3-byte PC:
 CALL 5, RCALL/ICALL/EICALL 4, RET/RETI 5, JMP 3; a taken branch 2; a skip over a
@@ -36,7 +39,8 @@ ISRS = [  # (vector, avr-libc name, description)
     (17, "TIMER1_COMPA_vect", "step timer"),
     (25, "USART0_RX_vect", "UART0 RX"),
     (13, "TIMER2_COMPA_vect", "heater PWM dither"),
-    (5, "INT4_vect", "ADS1115 ALERT/RDY pulse count"),
+    (5, "INT4_vect", "ADS1115 ALERT/RDY edge: stamp, sample, start its read"),
+    (39, "TWI_vect", "interrupt-driven ADS1115 read"),
 ]
 LIBC_HEADER = Path("/usr/lib/avr/include/avr/iomxx0_1.h")
 
@@ -180,6 +184,7 @@ def main() -> int:
     ap.add_argument("--mhz", type=float, default=16.0)
     ap.add_argument("--step-port", default="0x02", help="I/O address of the STEP port (PORTA)")
     ap.add_argument("--step-bit", default="0")
+    ap.add_argument("--step-budget", type=int, default=150, help="worst-case cycles allowed for the step ISR")
     args = ap.parse_args()
 
     insns, symbols = disassemble(args.elf)
@@ -204,6 +209,9 @@ def main() -> int:
             ok = False
             continue
         total = body + INTERRUPT_RESPONSE + VECTOR_JMP
+        if num == 17 and total > args.step_budget:
+            print(f"ERROR: {sym} ({name}) worst case {total} cycles exceeds the budget of {args.step_budget}")
+            ok = False
         print(f"{sym} ({name}, {what}): worst case {total} cycles = {total / args.mhz:.2f} us at "
               f"{args.mhz:g} MHz  [handler {body} cycles over {count} instructions + response "
               f"{INTERRUPT_RESPONSE} + vector jmp {VECTOR_JMP}; plus up to "

@@ -7,6 +7,10 @@ A backend is any pyserial-like port. ``Exchange.replies`` collects what arrives
 within ``settle_s`` of wall time (0: one read; the simulated device answers at once);
 with ``first_reply_s`` it first waits up to that long for a reply, then until
 ``settle_s`` passes quietly (an emulated CPU's speed depends on the host's load).
+An exchange that ``follows`` another (the same scenario already run on the simulated
+device) waits instead on a condition: as many replies as the reference got at that
+step, with a generous deadline, so a busy machine only makes it slower; a reply too
+many shows up in the next step's comparison.
 """
 
 from __future__ import annotations
@@ -39,8 +43,11 @@ def normalise(m):
 class Exchange:
     """Sends host frames to a device port and collects its replies."""
 
-    def __init__(self, port, settle_s: float, first_reply_s: float = 0.0):
+    def __init__(self, port, settle_s: float, first_reply_s: float = 0.0, follows: "Exchange | None" = None,
+                 deadline_s: float = 30.0):
         self.port, self.settle_s, self.first_reply_s = port, settle_s, first_reply_s
+        self.follows, self.deadline_s = follows, deadline_s
+        self.counts: list[int] = []       # replies per step (what a following exchange waits for)
         self.decoder = MessageDecoder()
         self.seq = 100
         self.samples: list[msg.Sample] = []
@@ -59,6 +66,13 @@ class Exchange:
         return out
 
     def replies(self) -> list:
+        if self.follows is not None:
+            want = self.follows.counts[len(self.counts)] if len(self.counts) < len(self.follows.counts) else 0
+            out, deadline = [], time.monotonic() + self.deadline_s
+            while len(out) < want and time.monotonic() < deadline:
+                out += [m for m in self._read_some() if not isinstance(m, (msg.Sample, msg.Boot))]
+            self.counts.append(len(out))
+            return [normalise(m) for m in out]
         out, now = [], time.monotonic()
         deadline = now + max(self.settle_s, self.first_reply_s)
         while True:
@@ -68,6 +82,7 @@ class Exchange:
                 deadline = time.monotonic() + self.settle_s   # then until it goes quiet
             if time.monotonic() >= deadline:
                 break
+        self.counts.append(len(out))
         return [normalise(m) for m in out]
 
     def send(self, message=None, *, raw: bytes | None = None, seq: int | None = None) -> list:
@@ -101,28 +116,33 @@ class Exchange:
         replies. Fails after ``timeout_s``."""
         deadline, beat = time.monotonic() + timeout_s, time.monotonic()
         unanswered: set[int] = set()
+        statuses_owed = 0                 # QUEUE_STATUS answers to our heartbeats not read yet
         found = since is not None and any(predicate(m) for m in self.received[since:])
         while time.monotonic() < deadline:
             if heartbeat and not found and time.monotonic() - beat > 0.2:
                 self.seq += 1
                 self.port.write(encode(msg.Heartbeat(), self.seq))
                 unanswered.add(self.seq)
+                statuses_owed += 1
                 beat = time.monotonic()
             for m in self._read_some():
                 if isinstance(m, msg.Ack):
                     unanswered.discard(m.acked_seq)
+                elif isinstance(m, msg.QueueStatus):
+                    statuses_owed -= 1
                 found = found or predicate(m)
-            if found and not unanswered:
-                # the QUEUE_STATUS after the last heartbeat's ACK must not leak into the next exchange
-                quiet = time.monotonic() + self.settle_s
-                while time.monotonic() < quiet:
-                    self._read_some()
+            if found and not unanswered and statuses_owed <= 0:
+                # every heartbeat's QUEUE_STATUS is in: none leaks into the next exchange
                 return
         raise AssertionError(f"nothing matching arrived within {timeout_s} s; events {self.events[-5:]}")
 
     def wait_device_s(self, seconds: float, timeout_s: float = 60.0) -> None:
-        """Keep the session alive until SAMPLEs show ``seconds`` more of device time."""
-        target = (self.samples[-1].t_us if self.samples else 0) + seconds * 1e6
+        """Keep the session alive until SAMPLEs show ``seconds`` more of device time (counted
+        from the first sample when none came yet: how much device time the handshake took
+        depends on the machine's load, not on the device)."""
+        if not self.samples:
+            self.wait_for(lambda m: isinstance(m, msg.Sample), timeout_s)
+        target = self.samples[-1].t_us + seconds * 1e6
         self.wait_for(lambda m: isinstance(m, msg.Sample) and m.t_us >= target, timeout_s)
 
 
@@ -141,8 +161,10 @@ def every_command_and_refusal(ex: Exchange) -> list:
     log.append(ex.send(raw=encode_raw(0x10, 6, b"\x01\x02\x03")))             # bad length
     log.append(ex.send(msg.Heartbeat()))                                      # state: position unknown
     log.append(ex.send(msg.MoveTo(1, 1000, 1000, 1000)))                      # refused: position unknown
+    log.append(ex.send(msg.ArmReset()))                                       # refused: position unknown
     log.append(ex.send(msg.SetPosition(10_000_000)))                          # beyond the twist limits
     log.append(ex.send(msg.SetPosition(0)))                                   # the twist zero
+    log.append(ex.send(msg.ArmReset()))                                       # at rest: armed
     log.append(ex.send(msg.MoveTo(1, 10_000_000, 1000, 1000)))                # beyond max twist
     log.append(ex.send(msg.MoveTo(1, 1000, 0, 1000)))                         # zero rate
     log.append(ex.send(msg.MoveTo(1, 1000, 10**6, 1000)))                     # rate beyond max
@@ -150,6 +172,7 @@ def every_command_and_refusal(ex: Exchange) -> list:
     log.append(ex.send(msg.SetHeater(1, 60_000)))                             # heater beyond max
     log.append(ex.send(msg.SetSampling(1, 500)))                              # period too short
     log.append(ex.send(msg.SetSampling(1, ADS1115_CONVERSION_US - 1)))        # below one ADS1115 conversion
+    log.append(ex.send(msg.SetSampling(1, ADS1115_CONVERSION_US + 1)))        # between conversions: never rounded
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # starts at once
     log.append(ex.send(msg.Dwell(2, 60_000_000), seq=4000))                   # duplicate: same ACK again
     for i in range(17):                                                        # fill the queue, then one more

@@ -43,7 +43,6 @@ void AvrBoard::init() {
     hal::clock_init();
     hal::uart_init();
     hal::twi_init();
-    hal::ads_ready_init();
     hal::step_init();
     sei();
     hal::gpio_write(hal::PIN_LED, true);
@@ -61,8 +60,8 @@ uint16_t AvrBoard::serial_write(const uint8_t* data, uint16_t n) { return hal::u
 
 void AvrBoard::motor_enable(bool on) { drv::a4988::enable(on); }
 uint8_t AvrBoard::step_space() { return hal::step_space(); }
-void AvrBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) {
-    hal::step_push(direction, interval_q8, add_q8, count, last);
+bool AvrBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) {
+    return hal::step_push(direction, interval_q8, add_q8, count, last);
 }
 bool AvrBoard::step_busy() { return hal::step_busy(); }
 int32_t AvrBoard::step_position() { return hal::step_position(); }
@@ -71,20 +70,46 @@ void AvrBoard::step_halt() { hal::step_halt(); }
 uint32_t AvrBoard::step_truncate(uint8_t keep, int32_t& rest_position) {
     return hal::step_truncate(keep, rest_position);
 }
+void AvrBoard::step_end_train() { hal::step_end_train(); }
 uint16_t AvrBoard::step_underruns() { return hal::step_underruns(); }
+uint16_t AvrBoard::step_fast_underruns() { return hal::step_fast_underruns(); }
 
 uint16_t AvrBoard::heater_set_mV(uint16_t mV) { return drv::heater::set_mV(mV); }
 bool AvrBoard::sense_current(bool on) { return drv::current_source::set(on); }
 
 bool AvrBoard::position_start() { return position_adc_.start(); }
 int8_t AvrBoard::position_poll(int16_t& counts) { return position_adc_.poll(counts); }
-bool AvrBoard::position_continuous(bool on) {
-    const bool ok = on ? position_adc_.start_continuous() : position_adc_.stop_continuous();
-    hal::ads_ready_take();  // pulses from before (or of the old mode) belong to no sample
-    return ok;
+bool AvrBoard::position_continuous(bool on, uint8_t every) {
+    hal::ads_stream_stop();  // edges from before (or of the old mode) belong to no sample
+    if (!on) return position_adc_.stop_continuous();
+    if (!position_adc_.start_continuous()) return false;
+    hal::ads_stream_start(cfg::ADS1115_ADDRESS, every);
+    return true;
 }
-uint8_t AvrBoard::position_ready() { return hal::ads_ready_take(); }
-int8_t AvrBoard::position_read(int16_t& counts) { return position_adc_.read_latest(counts) ? 1 : -1; }
+
+bool AvrBoard::position_take(fw::ConvSample& s) {
+    hal::twi_async_service();  // a read the bus held too long ends here (recovered)
+    hal::AdsSample a;
+    uint8_t lost = 0;
+    if (!hal::ads_stream_take(a, lost)) return false;
+    // 32-bit stamp -> 64-bit: the sample is far less than 71 minutes old
+    const uint64_t now = hal::micros();
+    s.t_us = now - static_cast<uint32_t>(static_cast<uint32_t>(now) - a.t_us);
+    s.step_position = hal::step_position_near(a.step_position16);
+    s.counts = static_cast<int16_t>((static_cast<uint16_t>(a.bytes[0]) << 8) | a.bytes[1]);
+    s.ok = a.status == hal::TWI_ASYNC_OK;
+    s.lost = lost;
+    return true;
+}
+
+uint16_t AvrBoard::position_edges(uint64_t& last_us) {
+    uint16_t edges;
+    uint32_t last;
+    hal::ads_stream_edges(edges, last);
+    const uint64_t now = hal::micros();
+    last_us = now - static_cast<uint32_t>(static_cast<uint32_t>(now) - last);
+    return edges;
+}
 
 // Refused without the sense current: the conversion would measure nothing (the core
 // should never ask; this keeps a core bug from reporting a bogus resistance).
@@ -105,8 +130,8 @@ bool AvrBoard::position_kept(int32_t& steps) {
     return kept_;
 }
 
-void AvrBoard::position_record(int32_t steps, bool valid) {
-    hal::reset_record_write(drv::CAUSE_RUNNING, steps, valid);
+void AvrBoard::position_record(int32_t steps, bool valid, bool armed) {
+    hal::reset_record_write(drv::CAUSE_RUNNING, steps, valid, armed);
 }
 
 uint16_t AvrBoard::uart_overruns() { return hal::uart_rx_overruns(); }

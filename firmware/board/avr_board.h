@@ -34,29 +34,31 @@ public:
 
     void motor_enable(bool on) override;
     uint8_t step_space() override;
-    void step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
+    bool step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
     bool step_busy() override;
     int32_t step_position() override;
     void step_set_position(int32_t steps) override;
     void step_halt() override;
     uint32_t step_truncate(uint8_t keep, int32_t& rest_position) override;
+    void step_end_train() override;
     uint16_t step_underruns() override;
+    uint16_t step_fast_underruns() override;
 
     uint16_t heater_set_mV(uint16_t mV) override;
     bool sense_current(bool on) override;
 
     bool position_start() override;
     int8_t position_poll(int16_t& counts) override;
-    bool position_continuous(bool on) override;
-    uint8_t position_ready() override;
-    int8_t position_read(int16_t& counts) override;
+    bool position_continuous(bool on, uint8_t every) override;
+    bool position_take(fw::ConvSample& s) override;
+    uint16_t position_edges(uint64_t& last_us) override;
     bool resistance_start() override;
     int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
 
     uint8_t boot_reason() override;
     void kick_hw_watchdog() override;
     bool position_kept(int32_t& steps) override;
-    void position_record(int32_t steps, bool valid) override;
+    void position_record(int32_t steps, bool valid, bool armed) override;
     uint16_t uart_overruns() override;
     uint16_t uart_frame_errors() override;
     uint16_t i2c_recoveries() override;

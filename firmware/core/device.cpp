@@ -16,19 +16,26 @@ namespace {
 const uint8_t RX_ROOM = 6;
 // Outbox room needed to report a counter event (underrun, I2C recovery).
 const uint8_t COUNTER_ROOM = 8;
+// TX ring room kept for sample blocks while sampling continuously: two full blocks.
+const uint16_t SAMPLE_TX_RESERVE =
+    2 * frame_wire_bytes(proto::SampleBlock::SIZE + proto::SampleBlock::MAX_ENTRIES * proto::SampleBlock::ENTRY_SIZE);
 }  // namespace
 
 Device::Device(Board& board)
     : board_(board), writer_(board), sim_load_(0), sim_ctx_(0), has_last_(false), last_seq_(0),
       last_id_(0), duplicates_(0), last_host_us_(0), scan_offset_(0), stop_owed_(false), stop_seq_(0),
-      stops_found_(0), burst_us_(0), fed_ticks_(0), exec_(EXEC_NONE), starting_(false),
+      stops_found_(0), burst_us_(0), last_run_q8_(0), fed_ticks_(0), exec_(EXEC_NONE), starting_(false),
       segment_(NO_SEGMENT), projected_(0), move_target_(0), move_dir_(0), seg_t_us_(0), dwell_us_(0),
       heater_mV_(0), fault_(0), fault_since_us_(0), stopping_(false), rest_steps_(0), position_known_(false),
-      motor_released_(false), underruns_seen_(0), recoveries_seen_(0), period_us_(0), next_sample_us_(0),
+      position_suspect_(false), reset_armed_(false), motor_released_(false), underruns_seen_(0),
+      fast_underruns_seen_(0), recoveries_seen_(0), max_pass_us_(0), period_us_(0), next_sample_us_(0),
       counter_(0), samples_missed_(0), sampler_(SAMPLER_IDLE), position_done_(true), resistance_done_(true),
       resistance_started_(false), sense_on_(false), sense_since_us_(0), sample_start_us_(0), conversion_us_(0),
-      continuous_(false), continuous_ok_(false), conv_per_sample_(1), conv_seen_(0), word_armed_(false),
-      word_ready_(false), word_counts_(0), word_flags_(0), pending_len_(0), pending_samples_(0) {
+      continuous_(false), continuous_ok_(false), in_outage_(false), sensor_event_owed_(false),
+      resume_gap_(false), have_last_stamp_(false), conv_per_sample_(1), sensor_restarts_(0), have_edge_(false),
+      edges_seen_(0), period_edges_(0), sensor_period_ns_(0), period_ref_us_(0), last_alive_us_(0), armed_at_us_(0),
+      last_stamp_us_(0), word_armed_(false), word_ready_(false), word_counts_(0), word_flags_(0), pending_len_(0),
+      pending_samples_(0) {
     last_ack_ = proto::Ack();
     sample_ = proto::Sample();
 }
@@ -46,9 +53,10 @@ void Device::boot() {
     position_known_ = board_.position_kept(kept);
     board_.step_set_position(position_known_ ? kept : 0);
     projected_ = board_.step_position();
-    board_.position_record(projected_, position_known_);
+    record_position(projected_);  // the arm was for the reset that just happened: spent
     board_.motor_enable(true);  // holding torque keeps the strings' twist under load
     underruns_seen_ = board_.step_underruns();
+    fast_underruns_seen_ = board_.step_fast_underruns();
     recoveries_seen_ = board_.i2c_recoveries();
     last_host_us_ = board_.now_us();
     // A reset can cut a frame short on the wire: a lone delimiter first ends it on the
@@ -65,14 +73,10 @@ void Device::boot() {
 }
 
 void Device::poll() {
+    const uint64_t start = board_.now_us();
     board_.kick_hw_watchdog();
-    // The continuous sampler has one conversion time (1.16 ms) to read each result before
-    // the next replaces it: it looks between the pass's longer parts (here after the
-    // previous pass's output, in read_serial after each frame, after each step feed and
-    // a move's begin()).
-    if (continuous_) run_sampler(board_.now_us());
     feed_steps();
-    read_serial(board_.now_us());
+    read_serial(start);
     uint64_t now = board_.now_us();
     run_executor(now);
     check_safety(now);
@@ -80,18 +84,35 @@ void Device::poll() {
     run_sampler(now);
     report_counters(now);
     writer_.flush();
+    const uint64_t pass = board_.now_us() - start;
+    if (pass > max_pass_us_) max_pass_us_ = pass > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(pass);
 }
+
+// A host frame may be handled now: the outbox has room for its replies, and while
+// sampling continuously no block waits for the line and the TX ring keeps room for two
+// blocks, so replies never take the samples' share of the line.
+bool Device::host_may_speak() {
+    if (writer_.outbox_free() < RX_ROOM) return false;
+    if (!continuous_) return true;
+    return pending_len_ == 0 && board_.serial_tx_free() >= SAMPLE_TX_RESERVE;
+}
+
+void Device::record_position(int32_t steps) { board_.position_record(steps, position_known_, reset_armed_); }
 
 uint8_t Device::state() const {
     uint8_t s = 0;
     if (!position_known_) s |= proto::device_state::POSITION_UNKNOWN;
+    if (position_suspect_) s |= proto::device_state::POSITION_SUSPECT;
     if (motor_released_) s |= proto::device_state::MOTOR_RELEASED;
     if (stopping_) s |= proto::device_state::STOPPING;
     return s;
 }
 
 void Device::read_serial(uint64_t now) {
-    if (writer_.outbox_free() < RX_ROOM) {
+    // Host frames wait while the outbox lacks room for their replies, and while a
+    // sample block waits for the line: a burst of commands must not crowd the samples
+    // off it. A STOP among the waiting bytes is acted on all the same.
+    if (!host_may_speak()) {
         scan_for_stop(now);
         return;
     }
@@ -102,14 +123,17 @@ void Device::read_serial(uint64_t now) {
     }
     scan_offset_ = 0;
     scanner_.reset();
-    for (uint8_t n = 0; n < RX_BUDGET; ++n) {
-        if (writer_.outbox_free() < RX_ROOM) return;
+    uint8_t frames = 0;
+    const uint32_t now32 = static_cast<uint32_t>(now);
+    for (uint8_t n = 0; n < RX_BUDGET && frames < FRAMES_PER_PASS; ++n) {
+        if (!host_may_speak()) return;
         int16_t c = board_.serial_read();
         if (c < 0) return;
-        if (parser_.feed(static_cast<uint8_t>(c), now)) {
+        if (parser_.feed(static_cast<uint8_t>(c), now32)) {
             last_host_us_ = now;
+            ++frames;
             handle_frame(now, parser_.msg_id(), parser_.seq(), parser_.payload(), parser_.payload_len());
-            if (continuous_) run_sampler(board_.now_us());
+            feed_steps();  // a frame's work may have taken a while: keep the ring fed
         }
     }
 }
@@ -117,11 +141,12 @@ void Device::read_serial(uint64_t now) {
 // The outbox is full, so host bytes wait in the RX ring; a STOP among them must not
 // wait. The scanner parses them in place, picking up where it left off.
 void Device::scan_for_stop(uint64_t now) {
+    const uint32_t now32 = static_cast<uint32_t>(now);
     for (uint8_t n = 0; n < RX_BUDGET; ++n) {
         const int16_t c = board_.serial_peek(scan_offset_);
         if (c < 0) return;
         ++scan_offset_;
-        if (!scanner_.feed(static_cast<uint8_t>(c), now)) continue;
+        if (!scanner_.feed(static_cast<uint8_t>(c), now32)) continue;
         if (scanner_.msg_id() != proto::Stop::ID || scanner_.payload_len() != 0) continue;
         stop_seq_ = scanner_.seq();
         stop_owed_ = true;
@@ -210,6 +235,11 @@ uint8_t Device::check(uint8_t id, const uint8_t* p) const {
             return proto::status::LIMIT_EXCEEDED;
         return proto::status::OK;
     }
+    if (id == proto::ArmReset::ID) {
+        if (!position_known_ || exec_ == EXEC_MOVE || stopping_ || queue_.has_move() || motor_released_)
+            return proto::status::BAD_STATE;
+        return proto::status::OK;
+    }
     if (!proto::is_queued(id)) return proto::status::OK;
     if (fault_) return proto::status::BAD_STATE;
     if (id == proto::MoveTo::ID || id == proto::MoveBy::ID) {
@@ -269,6 +299,10 @@ void Device::apply(uint8_t id, const uint8_t* p, uint64_t now) {
         set_position(m.position_steps);
         return;
     }
+    case proto::ArmReset::ID:
+        reset_armed_ = true;
+        record_position(board_.step_position());
+        return;
     default:
         break;
     }
@@ -334,6 +368,10 @@ void Device::send_queue_status(uint64_t now) {
     m.uart_overruns = board_.uart_overruns();
     m.uart_frame_errors = board_.uart_frame_errors();
     m.i2c_recoveries = board_.i2c_recoveries();
+    m.max_pass_us = max_pass_us_;
+    max_pass_us_ = 0;
+    m.sensor_period_ns = continuous_ ? sensor_period_ns_ : 0;
+    m.sensor_restarts = sensor_restarts_;
     uint8_t buf[proto::QueueStatus::SIZE];
     writer_.send(proto::QueueStatus::ID, buf, proto::pack(m, buf));
 }
@@ -353,13 +391,25 @@ void Device::send_event_value(uint64_t t_us, uint8_t kind, uint16_t code, int32_
     writer_.send(proto::Event::ID, buf, proto::pack(m, buf));
 }
 
-// Counters the board keeps (step underruns, I2C recoveries) become EVENTs when they move.
+// Counters the board keeps (step underruns, I2C recoveries) become EVENTs when they
+// move; so do the sampler's restarts (once per outage). An underrun above the
+// start/stop speed makes the position suspect.
 void Device::report_counters(uint64_t now) {
     if (writer_.outbox_free() < COUNTER_ROOM) return;
     const uint16_t underruns = board_.step_underruns();
     if (underruns != underruns_seen_) {
         underruns_seen_ = underruns;
         send_event(now, proto::event_kind::STEP_UNDERRUN, underruns);
+    }
+    const uint16_t fast = board_.step_fast_underruns();
+    if (fast != fast_underruns_seen_) {
+        fast_underruns_seen_ = fast;
+        position_suspect_ = true;
+        send_event(now, proto::event_kind::POSITION_SUSPECT, fast);
+    }
+    if (sensor_event_owed_) {
+        sensor_event_owed_ = false;
+        send_event(now, proto::event_kind::SENSOR_RESTARTED, sensor_restarts_);
     }
     const uint16_t recoveries = board_.i2c_recoveries();
     if (recoveries != recoveries_seen_) {

@@ -14,7 +14,7 @@
 // it runs, so a reset mid-move leaves the position unknown.
 //
 // Stopping. STOP and the host watchdog stop the motor under control: the queued steps
-// beyond cfg::STOP_KEEP_STEPS are dropped and replaced by a deceleration at
+// beyond about cfg::STOP_KEEP_US of them (2..16 steps) are dropped and replaced by a deceleration at
 // cfg::MAX_ACCEL_STEPS_PER_S2 (StepPlanner::stop); EVENT stopped (or fault) carries the
 // position the motor comes to rest at, and nothing new starts before it is there. The
 // twist-limit guard halts at once (a planner bug) and makes the position unknown. A
@@ -22,10 +22,19 @@
 // unknown), turns sampling and the sense current off (EVENT motor_released);
 // CLEAR_QUEUE re-energizes it.
 //
+// Position trust. A position survives a reset only when the host armed it (ARM_RESET:
+// it is about to reopen the port, which resets a Mega) and the board says the record
+// held (Board::position_kept); a move disarms it. A step underrun above the start/stop
+// speed makes the position suspect (EVENT position_suspect, QUEUE_STATUS state bit)
+// until SET_POSITION.
+//
 // Contract. boot() once, then poll() forever from the main loop; poll() never blocks
-// (it reads at most RX_BUDGET bytes, pushes step runs until STEP_LOOKAHEAD_US of steps
-// are queued or the board's ring is full, advances the executor, the watchdog and the sampler state machine, flushes
-// output) and kicks the hardware watchdog. Everything here runs in the main loop:
+// and its passes are short slices: it handles at most FRAMES_PER_PASS host frames
+// (RX_BUDGET bytes), feeding steps after each, pushes step runs until
+// STEP_LOOKAHEAD_US of steps are queued or the board's ring is full, advances the
+// executor, the watchdog and the sampler state machine, flushes output, and kicks the
+// hardware watchdog. The longest pass since the previous QUEUE_STATUS is reported in
+// it (max_pass_us). Everything here runs in the main loop:
 // nothing in the core is shared with an interrupt; multi-byte state the step and
 // serial ISRs touch lives behind the Board, which reads it atomically.
 // Backpressure instead of loss: host bytes are left in the RX ring while the outbox
@@ -55,13 +64,14 @@ typedef void (*SimLoadHandler)(void* ctx, uint32_t load_mg);
 // Most step runs (entries) feed_steps() hands to the step ring per call (see device_exec.cpp).
 static const uint8_t FEED_RUNS_PER_CALL = 4;
 // feed_steps() keeps this much step time queued ahead of the step generator, no more:
-// the ring (255 entries, ~16 ms of ramp steps at the top rate) is never filled in one
+// the ring (128 entries, ~8 ms of single ramp steps at the top rate) is never filled in one
 // go at a move's start, so the work per pass stays proportional to the steps taken.
 static const uint32_t STEP_LOOKAHEAD_US = 10000UL;
 
 class Device {
 public:
     static const uint8_t RX_BUDGET = 64;
+    static const uint8_t FRAMES_PER_PASS = 2;
 
     explicit Device(Board& board);
     void boot();
@@ -90,6 +100,9 @@ public:
     uint32_t samples_dropped() const { return writer_.dropped() + samples_missed_; }
     uint32_t urgent_lost() const { return writer_.urgent_lost(); }
     uint32_t stops_found_waiting() const { return stops_found_; }
+    bool position_suspect() const { return position_suspect_; }
+    uint16_t sensor_restarts() const { return sensor_restarts_; }
+    uint32_t sensor_period_ns() const { return sensor_period_ns_; }
 
 private:
     enum Exec { EXEC_NONE, EXEC_MOVE, EXEC_DWELL };
@@ -97,6 +110,7 @@ private:
 
     // device.cpp: frames and commands
     void read_serial(uint64_t now);
+    bool host_may_speak();
     void scan_for_stop(uint64_t now);
     void handle_frame(uint64_t now, uint8_t id, uint16_t seq, const uint8_t* p, uint8_t len);
     void handle_hello();
@@ -107,6 +121,7 @@ private:
     void send_event(uint64_t t_us, uint8_t kind, uint16_t code);
     void send_event_value(uint64_t t_us, uint8_t kind, uint16_t code, int32_t value);
     void report_counters(uint64_t now);
+    void record_position(int32_t steps);
 
     // device_exec.cpp: queue, segments, motion, safety
     void push(const QueuedCommand& c, uint64_t now);
@@ -131,6 +146,11 @@ private:
     void start_sample(uint64_t now);
     void progress_sample(uint64_t now);
     void run_continuous(uint64_t now);
+    void continuous_on(uint64_t now);
+    void arm_continuous(uint64_t now);
+    void restart_continuous(uint64_t now);
+    void measure_period(uint16_t new_edges, uint64_t last_edge_us);
+    void take_conversion(const ConvSample& c);
     void progress_words(uint64_t now);
     void continuous_off();
     void flush_block();
@@ -164,6 +184,7 @@ private:
 
     // executor
     uint64_t burst_us_;     // when the step generator last started from idle
+    uint32_t last_run_q8_;  // the first interval of the run pushed last (the present speed)
     uint32_t fed_ticks_;    // step time handed to it since then, STEP_TICK_HZ ticks
     Exec exec_;
     bool starting_;         // idle with segments (or QUEUE_EMPTY) still to start/report
@@ -179,9 +200,13 @@ private:
     bool stopping_;         // a controlled stop's deceleration is still running
     int32_t rest_steps_;    // where the motor comes to rest after a controlled stop
     bool position_known_;
+    bool position_suspect_;  // a fast underrun since the position was last set
+    bool reset_armed_;       // ARM_RESET: the record may keep the position across the next reset
     bool motor_released_;
     uint16_t underruns_seen_;
+    uint16_t fast_underruns_seen_;
     uint16_t recoveries_seen_;
+    uint16_t max_pass_us_;   // longest poll() since the last QUEUE_STATUS
 
     // sampler
     uint32_t period_us_;
@@ -199,9 +224,21 @@ private:
     uint64_t conversion_us_;  // resistance conversion started at
     // continuous sampler (periods below cfg::SINGLE_SHOT_MIN_PERIOD_US)
     bool continuous_;
-    bool continuous_ok_;      // the ADS1115 took continuous mode (else: grid, position invalid)
+    bool continuous_ok_;      // the ADS1115 took continuous mode and its edges are stamped
+    bool in_outage_;          // no edge for a while: restarts under way
+    bool sensor_event_owed_;  // EVENT sensor_restarted waits for outbox room
+    bool resume_gap_;         // the next sample follows a restart: count the conversions lost
+    bool have_last_stamp_;
     uint8_t conv_per_sample_;
-    uint8_t conv_seen_;       // conversions counted towards the next sample
+    uint16_t sensor_restarts_;
+    bool have_edge_;          // an edge came since the last set-up
+    uint16_t edges_seen_;     // the board's edge count (wraps)
+    uint32_t period_edges_;   // edges since the period's reference (0: no reference yet)
+    uint32_t sensor_period_ns_;
+    uint64_t period_ref_us_;
+    uint64_t last_alive_us_;  // the last edge (or when continuous sampling began)
+    uint64_t armed_at_us_;    // the last set-up of the ADS1115
+    uint64_t last_stamp_us_;  // the last sample's t_us
     bool word_armed_;         // a CS5513 measurement is armed
     bool word_ready_;         // a CS5513 word waits for the next sample
     int32_t word_counts_;

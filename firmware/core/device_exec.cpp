@@ -57,9 +57,9 @@ bool Device::begin(const QueuedCommand& c) {
         move_dir_ = target > start ? 1 : -1;
         uint32_t distance = target > start ? static_cast<uint32_t>(target - start)
                                            : static_cast<uint32_t>(start - target);
-        board_.position_record(start, false);  // a reset mid-move leaves it unknown
+        reset_armed_ = false;  // the host armed a reset at rest, not this
+        board_.position_record(start, false, false);  // a reset mid-move leaves it unknown
         planner_.begin(distance, c.value, c.accel);
-        if (continuous_) run_sampler(board_.now_us());  // begin() and the events took most of a conversion
         exec_ = EXEC_MOVE;
         feed_steps();
         return true;
@@ -83,7 +83,7 @@ void Device::run_executor(uint64_t now) {
         feed_steps();
         if (planner_.finished() && !board_.step_busy()) {
             stopping_ = false;
-            board_.position_record(board_.step_position(), position_known_);
+            record_position(board_.step_position());
             if (starting_) seg_t_us_ = now;
         }
     }
@@ -91,7 +91,7 @@ void Device::run_executor(uint64_t now) {
         if (exec_ == EXEC_MOVE) {
             feed_steps();
             if (planner_.finished() && !board_.step_busy()) {
-                board_.position_record(board_.step_position(), position_known_);
+                record_position(board_.step_position());
                 finish_segment(now);
             }
         } else if (exec_ == EXEC_DWELL && now - seg_t_us_ >= dwell_us_) {
@@ -121,13 +121,26 @@ void Device::feed_steps() {
         fed_ticks_ = 0;
     }
     const uint32_t elapsed = static_cast<uint32_t>(now - burst_us_) * (STEP_TICK_HZ / 1000000UL);
+    const uint32_t max_run_q8 = STEP_MAX_RUN_INTERVAL_TICKS << 8;
     for (uint8_t n = 0; n < FEED_RUNS_PER_CALL && !planner_.finished() && board_.step_space() > 0; ++n) {
         if (static_cast<int32_t>(fed_ticks_ - elapsed) >= static_cast<int32_t>(STEP_LOOKAHEAD_US * (STEP_TICK_HZ / 1000000UL)))
             break;
         uint32_t q8 = 0;
         int16_t add = 0;
-        const uint8_t count = planner_.next_run(q8, add, 255);
-        board_.step_push(move_dir_, q8, add, count, planner_.finished());
+        uint8_t count = planner_.next_run(q8, add, 255);
+        // Slow steps (longer than the generator takes in a run) go one at a time: the
+        // board chains each over several timer periods.
+        if (count > 1 && (q8 > max_run_q8 || static_cast<int32_t>(q8) + static_cast<int32_t>(add) * (count - 1) >
+                                                  static_cast<int32_t>(max_run_q8))) {
+            planner_.rewind(count - 1u);
+            count = 1;
+            add = 0;
+        }
+        if (!board_.step_push(move_dir_, q8, add, count, planner_.finished())) {
+            planner_.rewind(count);  // no room for its chain yet: again on a later pass
+            break;
+        }
+        last_run_q8_ = q8;
         // the run's time: count q8 + add count (count - 1) / 2, in whole ticks
         if (count == 1) {
             fed_ticks_ += q8 >> 8;
@@ -137,9 +150,6 @@ void Device::feed_steps() {
                                                 ((static_cast<int32_t>(add) * pairs) >> 8));
         }
     }
-    // the continuous sampler gets a look after every feed: on a ramp's per-step runs a
-    // pass can otherwise outlast one ADS1115 conversion
-    if (continuous_) run_sampler(board_.now_us());
 }
 
 // STOP and the host watchdog: queue cleared, heater off, the running move (if any)
@@ -150,9 +160,16 @@ void Device::controlled_stop() {
     set_heater(0);
     if (exec_ == EXEC_MOVE) {
         int32_t rest = 0;
-        const uint32_t dropped = board_.step_truncate(cfg::STOP_KEEP_STEPS, rest);
+        // keep about STOP_KEEP_US of steps at the present speed (the last run's interval)
+        const uint32_t ticks = last_run_q8_ >> 8;
+        uint32_t keep = ticks ? cfg::STOP_KEEP_US * (STEP_TICK_HZ / 1000000UL) / ticks : 0;
+        keep = keep < cfg::STOP_KEEP_STEPS ? cfg::STOP_KEEP_STEPS : keep > cfg::STOP_KEEP_MAX_STEPS ? cfg::STOP_KEEP_MAX_STEPS : keep;
+        const uint32_t dropped = board_.step_truncate(static_cast<uint8_t>(keep), rest);
         planner_.rewind(dropped);
         const uint32_t left = planner_.stop(cfg::MAX_ACCEL_STEPS_PER_S2);
+        // Slow enough to stop at once: the steps kept end the train, and its running dry
+        // is no underrun (it was reported as one).
+        if (left == 0) board_.step_end_train();
         rest_steps_ = rest + (move_dir_ > 0 ? static_cast<int32_t>(left) : -static_cast<int32_t>(left));
         // The dropped steps' time is gone from the ring: feed the deceleration at once.
         fed_ticks_ = static_cast<uint32_t>(board_.now_us() - burst_us_) * (STEP_TICK_HZ / 1000000UL);
@@ -179,7 +196,7 @@ void Device::halt_now() {
     set_heater(0);
     rest_steps_ = projected_ = board_.step_position();
     if (was_moving) position_known_ = false;
-    board_.position_record(rest_steps_, position_known_);
+    record_position(rest_steps_);
 }
 
 void Device::clear_queue() {
@@ -204,7 +221,8 @@ void Device::release_motor(uint64_t now) {
     board_.motor_enable(false);
     motor_released_ = true;
     position_known_ = false;
-    board_.position_record(board_.step_position(), false);
+    reset_armed_ = false;
+    record_position(board_.step_position());
     set_sampling(0, now);
     abort_resistance();
     sense_off();
@@ -220,8 +238,9 @@ void Device::set_heater(uint16_t mV) {
 void Device::set_position(int32_t steps) {
     board_.step_set_position(steps);
     position_known_ = true;
+    position_suspect_ = false;
     projected_ = rest_steps_ = steps;
-    board_.position_record(steps, true);
+    record_position(steps);
 }
 
 void Device::check_safety(uint64_t now) {

@@ -41,15 +41,8 @@ void Device::set_sampling(uint32_t period_us, uint64_t t_us) {
             position_done_ = true;
             progress_sample(t_us);
         }
-        if (!continuous_) {
-            continuous_ = true;
-            continuous_ok_ = board_.position_continuous(true);
-            word_armed_ = false;
-            word_ready_ = false;
-        }
         conv_per_sample_ = conversions_per_sample(period_us);
-        conv_seen_ = 0;
-        board_.position_ready();  // conversions before this point belong to no sample
+        continuous_on(t_us);
     }
     if (period_us == 0 && sampler_ == SAMPLER_IDLE) sense_off();
 }

@@ -19,7 +19,7 @@ void FrameParser::reset() {
     overflow_ = false;
 }
 
-bool FrameParser::feed(uint8_t byte, uint64_t now_us) {
+bool FrameParser::feed(uint8_t byte, uint32_t now_us) {
     if ((len_ > 0 || overflow_) && now_us - last_us_ > cfg::FRAME_TIMEOUT_US) {
         ++errors_.timeout;
         reset();

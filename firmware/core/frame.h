@@ -17,6 +17,9 @@ static const uint8_t FRAME_CRC_BYTES = 2;
 static const uint8_t MAX_STUFFED = 72;
 // Longest encoded frame including the delimiter (payload <= 64).
 static const uint8_t MAX_WIRE_FRAME = MAX_STUFFED + 1;
+// Bytes one frame takes on the wire, known before encoding: header 4 + payload + CRC 2,
+// COBS 1 (every frame body is under 254 bytes), delimiter 1.
+inline uint16_t frame_wire_bytes(uint8_t payload_len) { return static_cast<uint16_t>(payload_len + 8); }
 
 struct FrameErrors {
     uint16_t too_long;
@@ -33,7 +36,7 @@ struct FrameErrors {
 class FrameParser {
 public:
     FrameParser();
-    bool feed(uint8_t byte, uint64_t now_us);
+    bool feed(uint8_t byte, uint32_t now_us);  // now_us: the low 32 bits of the clock suffice (time-out 20 ms)
     // Forget a partial frame (not counted).
     void reset();
 
@@ -50,7 +53,7 @@ private:
     uint8_t buf_[MAX_STUFFED];
     uint8_t len_;
     bool overflow_;
-    uint64_t last_us_;
+    uint32_t last_us_;
     uint16_t seq_;
     uint8_t msg_id_;
     uint8_t payload_len_;

@@ -9,7 +9,7 @@
 namespace proto {
 
 static const uint8_t PROTOCOL_VERSION = 1;
-static const uint32_t CATALOGUE_HASH = 0xF417839FUL;
+static const uint32_t CATALOGUE_HASH = 0x1F96DBC9UL;
 static const uint8_t MAX_PAYLOAD = 64;
 
 // Little-endian fields. On little-endian targets (the AVR, x86) a fixed-size memcpy,
@@ -43,6 +43,7 @@ static const uint8_t UNKNOWN_MESSAGE = 5;
 static const uint8_t BAD_LENGTH = 6;
 static const uint8_t TOO_FAST_FOR_SENSOR = 7;
 static const uint8_t TOO_FAST_FOR_LINE = 8;
+static const uint8_t BETWEEN_CONVERSIONS = 9;
 }  // namespace status
 
 namespace event_kind {
@@ -56,6 +57,8 @@ static const uint8_t FAULT_CLEARED = 7;
 static const uint8_t STEP_UNDERRUN = 8;
 static const uint8_t I2C_RECOVERED = 9;
 static const uint8_t MOTOR_RELEASED = 10;
+static const uint8_t SENSOR_RESTARTED = 11;
+static const uint8_t POSITION_SUSPECT = 12;
 }  // namespace event_kind
 
 namespace fault {
@@ -96,6 +99,7 @@ namespace device_state {
 static const uint8_t POSITION_UNKNOWN = 1;
 static const uint8_t MOTOR_RELEASED = 2;
 static const uint8_t STOPPING = 4;
+static const uint8_t POSITION_SUSPECT = 8;
 }  // namespace device_state
 
 namespace id {
@@ -105,6 +109,7 @@ static const uint8_t STOP = 0x03;
 static const uint8_t CLEAR_QUEUE = 0x04;
 static const uint8_t SIM_SET_LOAD = 0x05;
 static const uint8_t SET_POSITION = 0x06;
+static const uint8_t ARM_RESET = 0x07;
 static const uint8_t MOVE_TO = 0x10;
 static const uint8_t MOVE_BY = 0x11;
 static const uint8_t DWELL = 0x12;
@@ -195,6 +200,17 @@ inline void unpack(const uint8_t* p, SetPosition& m) {
 inline uint8_t pack(const SetPosition& m, uint8_t* p) { 
     put_le<uint32_t>(p + 0, static_cast<uint32_t>(m.position_steps));
     return 4;
+}
+
+// ARM_RESET (0x07, host -> device): The host is about to close the port and open it again on purpose (opening a Mega's port resets it through DTR) - the position recorded now may be kept across the next reset, once, if the motor stays energized through it and the firmware's configuration is the same. Without it a reset leaves the position unknown. Refused with bad_state while the position is unknown, a move runs or waits, or the motor is stopping or released; a later move disarms it.
+struct ArmReset {
+    static const uint8_t ID = 0x07;
+    static const uint8_t SIZE = 0;
+};
+inline void unpack(const uint8_t* p, ArmReset& m) { (void)p; (void)m; 
+}
+inline uint8_t pack(const ArmReset& m, uint8_t* p) { (void)p; (void)m; 
+    return 0;
 }
 
 // MOVE_TO (0x10, host -> device, queued): Move to an absolute step position with a trapezoidal profile.
@@ -466,7 +482,7 @@ inline uint8_t pack(const Event& m, uint8_t* p) {
 // QUEUE_STATUS (0x85, device -> host): Answer to HEARTBEAT - queue and executor state.
 struct QueueStatus {
     static const uint8_t ID = 0x85;
-    static const uint8_t SIZE = 27;
+    static const uint8_t SIZE = 35;
     uint64_t t_us;  // device time since boot [us]
     uint8_t queue_free;  // free queue slots
     uint8_t executing;  // 1 while a segment executes
@@ -478,6 +494,9 @@ struct QueueStatus {
     uint16_t uart_overruns;  // bytes the UART lost since boot - receiver overrun (DOR) plus receive ring full (saturates)
     uint16_t uart_frame_errors;  // bytes received with a framing error since boot (saturates)
     uint16_t i2c_recoveries;  // I2C bus recoveries since boot (saturates)
+    uint16_t max_pass_us;  // longest main-loop pass since the previous QUEUE_STATUS (saturates; the step ring holds 10 ms of steps ahead) [us]
+    uint32_t sensor_period_ns;  // continuous sampling - the ADS1115's conversion period measured between ALERT/RDY edges since it was last set up (0 when not sampling continuously) [ns]
+    uint16_t sensor_restarts;  // continuous sampling - times the ADS1115 was set up again since boot (saturates)
 };
 inline void unpack(const uint8_t* p, QueueStatus& m) { 
     m.t_us = static_cast<uint64_t>(get_le<uint64_t>(p + 0));
@@ -491,6 +510,9 @@ inline void unpack(const uint8_t* p, QueueStatus& m) {
     m.uart_overruns = static_cast<uint16_t>(get_le<uint16_t>(p + 21));
     m.uart_frame_errors = static_cast<uint16_t>(get_le<uint16_t>(p + 23));
     m.i2c_recoveries = static_cast<uint16_t>(get_le<uint16_t>(p + 25));
+    m.max_pass_us = static_cast<uint16_t>(get_le<uint16_t>(p + 27));
+    m.sensor_period_ns = static_cast<uint32_t>(get_le<uint32_t>(p + 29));
+    m.sensor_restarts = static_cast<uint16_t>(get_le<uint16_t>(p + 33));
 }
 inline uint8_t pack(const QueueStatus& m, uint8_t* p) { 
     put_le<uint64_t>(p + 0, static_cast<uint64_t>(m.t_us));
@@ -504,7 +526,10 @@ inline uint8_t pack(const QueueStatus& m, uint8_t* p) {
     put_le<uint16_t>(p + 21, static_cast<uint16_t>(m.uart_overruns));
     put_le<uint16_t>(p + 23, static_cast<uint16_t>(m.uart_frame_errors));
     put_le<uint16_t>(p + 25, static_cast<uint16_t>(m.i2c_recoveries));
-    return 27;
+    put_le<uint16_t>(p + 27, static_cast<uint16_t>(m.max_pass_us));
+    put_le<uint32_t>(p + 29, static_cast<uint32_t>(m.sensor_period_ns));
+    put_le<uint16_t>(p + 33, static_cast<uint16_t>(m.sensor_restarts));
+    return 35;
 }
 
 // One entry of SAMPLE_BLOCK (`more` of them follow the fixed fields).
@@ -521,8 +546,8 @@ struct SampleBlock {
     static const uint8_t ENTRY_SIZE = 7;
     static const uint8_t MAX_ENTRIES = 5;
     uint32_t counter;  // counter of the first sample; the others follow on (counter + 1 ...)
-    uint64_t t_us;  // device time at which the first sample's position conversion started [us]
-    int32_t step_position;  // motor position at the first sample [step]
+    uint64_t t_us;  // device time at which the first sample's position conversion started - the ALERT/RDY edge that ended the conversion before it [us]
+    int32_t step_position;  // motor position at the first sample's t_us (captured with it) [step]
     int16_t position_raw;  // ADS1115 conversion of the first sample [count]
     uint8_t flags;  // sample_flags of the first sample plus the flags of the block's resistance word
     uint16_t heater_mV;  // heater equivalent voltage applied (the same for every sample of the block) [mV]
@@ -586,6 +611,7 @@ inline int16_t payload_size(uint8_t msg_id) {
     case 0x04: return 0;
     case 0x05: return 4;
     case 0x06: return 4;
+    case 0x07: return 0;
     case 0x10: return 14;
     case 0x11: return 14;
     case 0x12: return 6;
@@ -596,7 +622,7 @@ inline int16_t payload_size(uint8_t msg_id) {
     case 0x82: return 5;
     case 0x83: return 28;
     case 0x84: return 17;
-    case 0x85: return 27;
+    case 0x85: return 35;
     case 0x86: return 29;
     default: return -1;
     }
@@ -646,6 +672,10 @@ inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
     case 0x06: {
         out[0] = static_cast<int32_t>(get_le<uint32_t>(p + 0));
         return 1;
+    }
+    case 0x07: {
+        (void)p; (void)out;
+        return 0;
     }
     case 0x10: {
         out[0] = static_cast<uint16_t>(get_le<uint16_t>(p + 0));
@@ -741,7 +771,10 @@ inline uint8_t decode_fields(uint8_t msg_id, const uint8_t* p, int64_t* out) {
         out[8] = static_cast<uint16_t>(get_le<uint16_t>(p + 21));
         out[9] = static_cast<uint16_t>(get_le<uint16_t>(p + 23));
         out[10] = static_cast<uint16_t>(get_le<uint16_t>(p + 25));
-        return 11;
+        out[11] = static_cast<uint16_t>(get_le<uint16_t>(p + 27));
+        out[12] = static_cast<uint32_t>(get_le<uint32_t>(p + 29));
+        out[13] = static_cast<uint16_t>(get_le<uint16_t>(p + 33));
+        return 14;
     }
     case 0x86: {
         out[0] = static_cast<uint32_t>(get_le<uint32_t>(p + 0));

@@ -53,11 +53,10 @@ void FrameWriter::flush() {
 
 bool FrameWriter::try_send_sample(uint8_t msg_id, const uint8_t* payload, uint8_t len) {
     flush();
-    if (!idle()) return false;
+    // Room first, from the size the frame will have: it is encoded once, when it goes.
+    if (!idle() || board_.serial_tx_free() < frame_wire_bytes(len)) return false;
     uint8_t frame[MAX_WIRE_FRAME];
-    const uint8_t n = frame_encode(msg_id, seq_, payload, len, frame);
-    if (board_.serial_tx_free() < n) return false;
-    ++seq_;
+    const uint8_t n = frame_encode(msg_id, seq_++, payload, len, frame);
     board_.serial_write(frame, n);
     return true;
 }

@@ -30,7 +30,8 @@ public:
     void fill(uint8_t slot, uint8_t msg_id, const uint8_t* payload, uint8_t len);
     bool send_droppable(uint8_t msg_id, const uint8_t* payload, uint8_t len);
     // As send_droppable, but a frame that does not fit now is neither sent nor counted:
-    // the caller keeps it and tries again (SAMPLE_BLOCKs, device_continuous.cpp).
+    // the caller keeps it and tries again (SAMPLE_BLOCKs, device_continuous.cpp). The
+    // room is checked before encoding, so a frame is encoded once, when it goes.
     bool try_send_sample(uint8_t msg_id, const uint8_t* payload, uint8_t len);
     // Writes waiting urgent frames, oldest first, while the TX ring fits them.
     void flush();

@@ -155,9 +155,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (r.polls < MAX_POLLS && (r.dev.stopping() || r.board.step_busy())) {
         // A slow move's pending edge and the kept steps run at their own rate (up to a
         // second each at 1 step/s); nothing beyond them may still be queued, and they end.
-        if (r.board.steps_pending() > 1u + cfg::STOP_KEEP_STEPS)
+        if (r.board.steps_pending() > 1u + cfg::STOP_KEEP_MAX_STEPS)
             fail("more than the pending edge and the kept steps still queued after the watchdog period");
-        advance(r, (1u + cfg::STOP_KEEP_STEPS) * 1000000ULL + 100000);
+        advance(r, (1u + cfg::STOP_KEEP_MAX_STEPS) * 1000000ULL + 100000);
     }
     if (r.polls < MAX_POLLS) {
         if (r.dev.executing() || r.dev.stopping() || r.board.heater_mV > 0 || r.board.step_busy() ||

@@ -11,8 +11,9 @@ namespace {
 // adds that to g_us_base, so micros() is one 64-bit add of TCNT3 / 2 (no 64-bit shifts:
 // they are library loops on the AVR, and the main loop reads the clock often).
 const uint16_t US_PER_OVERFLOW = 32768;
-volatile uint64_t g_us_base = 0;
 }  // namespace
+
+volatile uint64_t detail::g_us_base = 0;
 
 void clock_init() {
     TCCR3A = 0;
@@ -26,7 +27,7 @@ uint64_t micros() {
     uint64_t base;
     uint16_t t;
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
-        base = g_us_base;
+        base = detail::g_us_base;
         t = TCNT3;
         // An overflow that happened after cli() is pending, not yet counted. If TCNT3
         // is small it wrapped before we read it: count the overflow here.
@@ -43,4 +44,4 @@ void delay_us(uint8_t us) {
 
 }  // namespace hal
 
-ISR(TIMER3_OVF_vect) { hal::g_us_base = hal::g_us_base + hal::US_PER_OVERFLOW; }
+ISR(TIMER3_OVF_vect) { hal::detail::g_us_base = hal::detail::g_us_base + hal::US_PER_OVERFLOW; }

@@ -3,6 +3,7 @@
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/wdt.h>
+#include <string.h>
 #include <util/atomic.h>
 
 #include "pins.h"
@@ -34,13 +35,18 @@ bool motor_enable_held_at_reset() { return g_enable_level == 0; }
 
 drv::ResetRecord& reset_record() { return g_record; }
 
-void reset_record_write(uint8_t cause, int32_t position_steps, bool position_valid) {
-    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
-        g_record.cause = cause;
-        g_record.position_valid = position_valid ? 1 : 0;
-        g_record.position_steps = position_steps;
-        drv::reset_record_seal(g_record);
-    }
+void reset_record_write(uint8_t cause, int32_t position_steps, bool position_valid, bool armed) {
+    // Sealed outside the lock (the CRC is most of the work); only the copy is masked, so
+    // the watchdog ISR never sees half a record and the other ISRs wait ~40 cycles.
+    drv::ResetRecord r;
+    r.cause = cause;
+    r.position_valid = position_valid ? 1 : 0;
+    r.position_steps = position_steps;
+    r.armed = armed ? 1 : 0;
+    r.reserved = 0;
+    r.config_hash = drv::CONFIG_HASH;
+    drv::reset_record_seal(r);
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { memcpy(&g_record, &r, sizeof r); }
 }
 
 void quiesce() {

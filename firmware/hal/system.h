@@ -6,7 +6,8 @@
 // shortest period). reset_record() is the drivers/reset_cause.h ResetRecord in .noinit,
 // placed after .bss: clear of the stk500v2 bootloader's few globals at the bottom of
 // SRAM and its stack (a 285-byte message buffer) at the top. reset_record_write() seals
-// a new record with interrupts masked, so the watchdog ISR never sees half of one.
+// a new record (armed: the host armed the next reset) and copies it in with interrupts
+// masked, so the watchdog ISR never sees half of one.
 // watchdog_enable() arms the WDT in interrupt-then-reset mode (~120 ms): its interrupt
 // (ISR in system.cpp) turns the heater and the sense current off and stops STEP at
 // once, records cause watchdog, disables the WDT and restarts the application at its
@@ -26,7 +27,7 @@ uint8_t reset_flags();
 // /ENABLE read low at start-up: the driver stayed energized through the reset.
 bool motor_enable_held_at_reset();
 drv::ResetRecord& reset_record();
-void reset_record_write(uint8_t cause, int32_t position_steps, bool position_valid);
+void reset_record_write(uint8_t cause, int32_t position_steps, bool position_valid, bool armed);
 void quiesce();
 void watchdog_enable();
 void watchdog_kick();

@@ -1,10 +1,23 @@
 #include "twi.h"
 
+#include <avr/interrupt.h>
 #include <avr/io.h>
+#include <util/atomic.h>
 
 #include "clock.h"
 
 namespace hal {
+
+volatile uint8_t detail::g_astate = 0;
+volatile uint8_t* volatile detail::g_aout = 0;
+volatile uint8_t* volatile detail::g_astatus = 0;
+volatile uint8_t detail::g_asla = 0;
+volatile uint16_t detail::g_astart = 0;
+using detail::g_astate;
+using detail::g_aout;
+using detail::g_astatus;
+using detail::g_asla;
+using detail::g_astart;
 
 namespace {
 const uint32_t TWI_HZ = 400000UL;
@@ -23,6 +36,8 @@ const uint8_t ST_DATA_R_NACK = 0x58;
 // TWI pins on the ATmega2560: SCL = PD0, SDA = PD1 (external pull-ups on the board).
 const uint8_t SCL = 1 << 0;
 const uint8_t SDA = 1 << 1;
+
+volatile bool g_arecover = false;  // a bus error in the interrupt-driven read asks for a recovery
 
 uint16_t g_recoveries = 0;
 uint64_t g_backoff_until_us = 0;
@@ -112,6 +127,31 @@ bool begin(uint8_t sla) {
 }
 
 bool backing_off() { return g_backoff_until_us != 0 && micros() < g_backoff_until_us; }
+
+void async_abort_locked() {
+    if (g_astate) {
+        g_astate = 0;
+        *g_astatus = TWI_ASYNC_FAILED;
+    }
+}
+
+// A blocking transfer begins: an interrupt-driven read must be over (bounded wait), and
+// the TWI interrupt off.
+void async_settle() {
+    const uint16_t t0 = ticks16();
+    while (g_astate && static_cast<uint16_t>(ticks16() - t0) <= TIMEOUT_TICKS) {
+    }
+    bool held = false;
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+        held = g_astate != 0;
+        async_abort_locked();
+        TWCR = static_cast<uint8_t>(TWCR & ~((1 << TWIE) | (1 << TWINT)));
+    }
+    if (held || g_arecover) {
+        g_arecover = false;
+        recover_bus();
+    }
+}
 }  // namespace
 
 void twi_init() {
@@ -121,6 +161,7 @@ void twi_init() {
 }
 
 bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n) {
+    async_settle();
     if (backing_off()) return false;
     if (!begin(static_cast<uint8_t>(address7 << 1)) || status() != ST_SLA_W_ACK) return fail();
     for (uint8_t i = 0; i < n; ++i) {
@@ -133,6 +174,7 @@ bool twi_write(uint8_t address7, const uint8_t* data, uint8_t n) {
 
 bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
     if (n == 0) return true;
+    async_settle();
     if (backing_off()) return false;
     if (!begin(static_cast<uint8_t>((address7 << 1) | 1)) || status() != ST_SLA_R_ACK) return fail();
     for (uint8_t i = 0; i < n; ++i) {
@@ -147,4 +189,71 @@ bool twi_read(uint8_t address7, uint8_t* data, uint8_t n) {
 
 uint16_t twi_recoveries() { return g_recoveries; }
 
+bool twi_async_busy() { return g_astate != 0; }
+
+void twi_async_service() {
+    bool stuck = false;
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+        if (g_astate && static_cast<uint16_t>(ticks16() - g_astart) > TIMEOUT_TICKS) {
+            stuck = true;
+            async_abort_locked();
+            TWCR = 0;
+        }
+    }
+    if (stuck || g_arecover) {
+        g_arecover = false;
+        recover_bus();
+    }
+}
+
 }  // namespace hal
+
+// TWI interrupt: the next step of the interrupt-driven 2-byte read (vector 39).
+ISR(TWI_vect) {
+    using namespace hal;
+    const uint8_t st = status();
+    const uint8_t on = (1 << TWINT) | (1 << TWEN) | (1 << TWIE);
+    switch (g_astate) {
+    case 1:
+        if (st == ST_START || st == ST_REP_START) {
+            TWDR = g_asla;
+            TWCR = on;
+            g_astate = 2;
+            return;
+        }
+        break;
+    case 2:
+        if (st == ST_SLA_R_ACK) {
+            TWCR = on | (1 << TWEA);
+            g_astate = 3;
+            return;
+        }
+        break;
+    case 3:
+        if (st == ST_DATA_R_ACK) {
+            g_aout[0] = TWDR;
+            TWCR = on;
+            g_astate = 4;
+            return;
+        }
+        break;
+    case 4:
+        if (st == ST_DATA_R_NACK) {
+            g_aout[1] = TWDR;
+            TWCR = (1 << TWINT) | (1 << TWEN) | (1 << TWSTO);
+            *g_astatus = TWI_ASYNC_OK;
+            g_astate = 0;
+            return;
+        }
+        break;
+    default:
+        break;
+    }
+    // NACK, bus error, lost arbitration, or a stray interrupt: end it
+    if (st == ST_BUS_ERROR || st == ST_ARB_LOST) g_arecover = true;
+    TWCR = (1 << TWINT) | (1 << TWEN) | (1 << TWSTO);
+    if (g_astate) {
+        g_astate = 0;
+        *g_astatus = TWI_ASYNC_FAILED;
+    }
+}

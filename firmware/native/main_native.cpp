@@ -14,10 +14,17 @@
 //              slow: then the watchdog fires), as `tsa-bench sim-serve` paces itself.
 //   --cs5513-us US  a resistance word takes US after arming (default 0: at once; 19125 is
 //              the CS5513 at its slowest on-chip oscillator, DS337: CLK/612 at 32 kHz).
-// Sends BOOT at once; exits when stdin closes. The IDENTITY has the SIMULATED flag and
-// SIM_SET_LOAD changes the (crude) simulated sensors. Sensors: position counts fall
-// with twist, resistance counts rise with it, both steady at rest.
+//   --as-hardware  the IDENTITY has no SIMULATED flag and SIM_SET_LOAD is unknown, as on
+//              the Mega (a rehearsal rig: the host asks its operator what a real rig asks).
+//   --control-fd FD  lines read from FD act on the board as a person or the USB bridge
+//              would: "reset" = an external reset (the DTR pulse when a port opens: the core
+//              restarts, the position kept when its record is valid and the motor held),
+//              "load G" = G grams now hang on the TSA.
+// Sends BOOT at once; exits when stdin closes. Without --as-hardware the IDENTITY has the
+// SIMULATED flag and SIM_SET_LOAD changes the (crude) simulated sensors. Sensors: position
+// counts fall with twist and load, resistance counts rise with twist, both steady at rest.
 #include <errno.h>
+#include <new>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -63,12 +70,48 @@ bool write_all(const uint8_t* p, size_t n) {
 
 fw::FakeBoard g_board;
 fw::Device g_dev(g_board);
+bool g_as_hardware = false;
+
+// An external reset: SRAM (the board's position record) survives, the core starts anew.
+void external_reset() {
+    g_board.kept_valid = g_board.record_valid && g_board.motor_enabled;
+    g_board.kept_steps = g_board.record_steps;
+    g_board.reason = proto::boot_reason::EXTERNAL_RESET;
+    g_dev.~Device();
+    new (&g_dev) fw::Device(g_board);
+    if (!g_as_hardware) g_dev.set_sim_load_handler(on_load, 0);
+    g_dev.boot();
+}
+
+// Lines from the control descriptor (see the header); a partial line waits for its end.
+void read_control(int fd, char* line, size_t& len) {
+    pollfd pfd = {fd, POLLIN, 0};
+    if (fd < 0 || poll(&pfd, 1, 0) <= 0) return;
+    ssize_t r = read(fd, line + len, 127 - len);
+    if (r <= 0) return;
+    len += static_cast<size_t>(r);
+    char* nl;
+    while ((nl = static_cast<char*>(memchr(line, '\n', len))) != 0) {
+        *nl = 0;
+        if (!strcmp(line, "reset")) {
+            external_reset();
+        } else if (!strncmp(line, "load ", 5)) {
+            double g = atof(line + 5);
+            if (g >= 0 && g < 4e6) g_load_mg = static_cast<uint32_t>(g * 1000.0 + 0.5);
+        }
+        size_t used = static_cast<size_t>(nl - line) + 1;
+        memmove(line, nl + 1, len - used);
+        len -= used;
+    }
+    if (len >= 127) len = 0;  // an overlong line: dropped
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
     double speed = 1.0;
     bool virtual_time = false;
+    int control_fd = -1;
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--speed") && i + 1 < argc) {
             speed = atof(argv[++i]);
@@ -76,16 +119,23 @@ int main(int argc, char** argv) {
             virtual_time = true;
         } else if (!strcmp(argv[i], "--cs5513-us") && i + 1 < argc) {
             g_board.resistance_latency_us = static_cast<uint32_t>(atol(argv[++i]));
+        } else if (!strcmp(argv[i], "--as-hardware")) {
+            g_as_hardware = true;
+        } else if (!strcmp(argv[i], "--control-fd") && i + 1 < argc) {
+            control_fd = atoi(argv[++i]);
         } else {
-            fprintf(stderr, "usage: %s [--speed X | --virtual] [--cs5513-us US]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--speed X | --virtual] [--cs5513-us US] [--as-hardware] "
+                            "[--control-fd FD]\n", argv[0]);
             return 2;
         }
     }
     const uint64_t wd_us = static_cast<uint64_t>(cfg::WATCHDOG_MS) * 1000ULL;
-    g_board.reason = proto::boot_reason::EXTERNAL_RESET;
+    g_board.reason = g_as_hardware ? proto::boot_reason::POWER_ON : proto::boot_reason::EXTERNAL_RESET;
     g_board.tx_ring_size = 4096;
-    g_dev.set_sim_load_handler(on_load, 0);
+    if (!g_as_hardware) g_dev.set_sim_load_handler(on_load, 0);
     g_dev.boot();
+    char control[128];
+    size_t control_len = 0;
 
     uint8_t in[1024];
     size_t in_len = 0;
@@ -94,6 +144,7 @@ int main(int argc, char** argv) {
     uint64_t last_host_dev_us = 0, last_host_wall = wall0;
     uint8_t out[4096];
     for (;;) {
+        read_control(control_fd, control, control_len);
         // 1. host bytes
         if (!eof && in_len < sizeof in) {
             pollfd pfd = {STDIN_FILENO, POLLIN, 0};

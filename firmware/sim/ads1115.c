@@ -20,9 +20,14 @@
 // 1, Lo_thresh's MSB 0 and COMP_QUE not 11 it is the conversion-ready pin (9.3.8): in
 // continuous mode it pulses low for ~8 us at the end of every conversion (COMP_POL = 1:
 // a high pulse). The comparator is then off. Pulses are counted (ads.rdy_pulses).
+// --rdy-cut T0[:T1] cuts the ALERT/RDY wire between T0 and T1 s of device time (T1
+// omitted: for good, an unwired D2): the chip converts on, no pulse reaches the AVR
+// (counted: ads.rdy_pulses_cut).
 // A conversion starts when the config write's last byte has been shifted in (nine bit
-// times after the byte's TWCR write, twi_bus.c); its start instants are the sampler's
-// real timing (jitter figure, --trace). The plant's position reading is requested at
+// times after the byte's TWCR write, twi_bus.c); in continuous mode each next one starts
+// as the one before ends (its ALERT/RDY edge). Every start is the sampler's real timing
+// (jitter figure; --trace writes each as `ads_start <us> <steps>`: the firmware's clock
+// and the A4988's step count then). The plant's position reading is requested at
 // the end of the conversion. Faults injected on the bus (NACK, stretching, a stuck SDA)
 // come from twi_bus.c.
 //
@@ -63,6 +68,27 @@ static struct {
     uint64_t done_cycle;   // when the latest conversion finished
     int unread;            // the latest conversion has not been read yet
 } g;
+
+#define MAX_RDY_CUTS 4
+static double g_cut_t0[MAX_RDY_CUTS], g_cut_t1[MAX_RDY_CUTS];
+static int g_n_cuts;
+
+int ads1115_add_rdy_cut(const char *spec) {
+    double a = -1, b = 1e300;
+    const int n = sscanf(spec, "%lf:%lf", &a, &b);
+    if (g_n_cuts >= MAX_RDY_CUTS || n < 1 || a < 0 || b < a) return -1;
+    g_cut_t0[g_n_cuts] = a;
+    g_cut_t1[g_n_cuts] = b;
+    g_n_cuts++;
+    return 0;
+}
+
+static int rdy_cut_now(void) {
+    const double t = harness_time_s(g.h);
+    for (int i = 0; i < g_n_cuts; ++i)
+        if (t >= g_cut_t0[i] && t < g_cut_t1[i]) return 1;
+    return 0;
+}
 
 static const uint16_t SPS[8] = {8, 16, 32, 64, 128, 250, 475, 860};
 static const double FS_V[8] = {6.144, 4.096, 2.048, 1.024, 0.512, 0.256, 0.256, 0.256};
@@ -118,6 +144,8 @@ static avr_cycle_count_t rdy_release(struct avr_t *avr, avr_cycle_count_t when, 
     return 0;
 }
 
+static void note_start(uint64_t start);
+
 static avr_cycle_count_t conversion_done(struct avr_t *avr, avr_cycle_count_t when, void *param) {
     (void)param;
     struct harness *h = g.h;
@@ -143,7 +171,9 @@ static avr_cycle_count_t conversion_done(struct avr_t *avr, avr_cycle_count_t wh
     g.unread = 1;
     g.done_cycle = avr->cycle;
     if (rdy_mode()) {
-        if (g.continuous) {
+        if (g.continuous && rdy_cut_now()) {
+            h->ads_rdy_pulses_cut++;
+        } else if (g.continuous) {
             wiring_pull(h, RIG_ADS_RDY_PORT, RIG_ADS_RDY_BIT, !rdy_idle_level());
             avr_cycle_timer_register(avr, ADS1115_RDY_PULSE_CYCLES, rdy_release, NULL);
             h->ads_rdy_pulses++;
@@ -151,7 +181,10 @@ static avr_cycle_count_t conversion_done(struct avr_t *avr, avr_cycle_count_t wh
     } else {
         comparator((int16_t)code);
     }
-    if (g.continuous) return when + conversion_cycles();
+    if (g.continuous) {
+        note_start(when);  // the next conversion starts as this one ends
+        return when + conversion_cycles();
+    }
     g.regs[1] |= 0x8000;  // OS = 1: idle
     g.converting = 0;
     return 0;
@@ -168,7 +201,7 @@ static void note_start(uint64_t start) {
         h->ads_intervals++;
     }
     h->ads_last_start = start;
-    if (g.trace) fprintf(g.trace, "ads_start %.3f\n", harness_app_us(h, start));
+    if (g.trace) fprintf(g.trace, "ads_start %.3f %d\n", harness_app_us(h, start), (int)h->drive.steps);
 }
 
 // The config register was written (its LSB just arrived).
@@ -222,6 +255,10 @@ static void on_twi(struct avr_irq_t *irq, uint32_t value, void *param) {
     }
     if (!g.selected) return;
     if (msg & TWI_COND_WRITE) {
+        if (g.write_index == 1 && g.pointer == 1 && twi_bus_nack_config()) {
+            g.selected = 0;  // not acknowledged (nackcfg): the write ends here, nothing applied
+            return;
+        }
         reply(TWI_COND_ACK, addr, 1);
         if (g.write_index == 0) {
             g.pointer = data & 3;

@@ -306,6 +306,21 @@ void drive_attach(struct harness *h, int enable_pull_up) {
     h->drive.enabled = !enable_pull_up;
 }
 
+// A4988 data sheet: the translator's Home state is the 45-degree point of the
+// microstep table, repeated every four full steps (64 microsteps at 1/16 stepping); a
+// UVLO restart puts the phase currents there and the rotor follows to the nearest one.
+#define MICROSTEPS_PER_CYCLE 64
+
+void drive_brown_out(struct harness *h) {
+    struct drive_state *s = &h->drive;
+    const int32_t cycle = MICROSTEPS_PER_CYCLE;
+    int32_t r = s->steps % cycle;
+    if (r < 0) r += cycle;
+    const int32_t shift = r < cycle / 2 ? -r : cycle - r;
+    s->steps += shift;
+    s->steps_home_shift += shift;
+}
+
 // The AVR reset: Timer2 and the ports are back at their reset values.
 void drive_reset(struct harness *h) {
     avr_cycle_timer_cancel(h->avr, apply_ocr2a, h);

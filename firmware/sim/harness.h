@@ -25,6 +25,7 @@ struct drive_state {
     uint64_t steps_total;          // every enabled rising edge
     uint64_t steps_while_disabled; // rising edges with /ENABLE high (the motor ignores them)
     uint64_t steps_backdriven;     // steps the loaded strings turned a released motor back
+    int64_t steps_home_shift;      // steps the translator's restart at Home moved the rotor (brown-outs)
     uint64_t pulse_width_violations;   // STEP high or low < 1 us
     uint64_t dir_setup_violations;     // DIR changed < 200 ns before a STEP rising edge
     uint64_t dir_hold_violations;      // DIR changed < 200 ns after a STEP rising edge
@@ -54,7 +55,8 @@ struct harness {
     uint64_t twi_status_fixes, twi_transactions, twi_naks;
     uint64_t twi_starts, twi_stops, twi_bytes, twi_naks_injected, twi_stretched_bytes;
     uint64_t twi_stuck_events, twi_manual_clocks, twi_releases;
-    uint64_t ads_conversions, ads_alerts, ads_rdy_pulses, ads_unread, cs_conversions, cs_words_read, cs_partial_reads;
+    uint64_t ads_conversions, ads_alerts, ads_rdy_pulses, ads_rdy_pulses_cut, ads_unread, cs_conversions, cs_words_read,
+        cs_partial_reads;
     double ads_read_latency_max_us;  // continuous mode: conversion end to the read of its result
     uint64_t cs_od_words, cs_sclk_violations;
     uint64_t plant_queries;
@@ -94,12 +96,17 @@ void drive_attach(struct harness *h, int enable_pull_up);
 void drive_check_interlock(struct harness *h);  // also called every slice (Timer2 has no IRQ)
 void drive_tick(struct harness *h);
 void drive_reset(struct harness *h);
+// A brown-out: the A4988's translator restarts at Home under its own UVLO, the rotor
+// moving to the nearest Home position of its electrical cycle.
+void drive_brown_out(struct harness *h);
 void ads1115_attach(struct harness *h, uint8_t address7, double rate_error, FILE *trace);
 void ads1115_reset(struct harness *h);
+int ads1115_add_rdy_cut(const char *spec);  // before ads1115_attach; -1 on a bad spec
 int twi_bus_add_fault(const char *spec, char *err, size_t errlen);
 void twi_bus_attach(struct harness *h);
 void twi_bus_reset(struct harness *h);
 int twi_bus_nack_now(void);
+int twi_bus_nack_config(void);  // 1: NACK this byte written to the ADS1115's config register
 uint64_t twi_bus_byte_cycles(void);
 void cs5513_attach(struct harness *h, double conversion_us);
 void cs5513_reset(struct harness *h);

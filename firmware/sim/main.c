@@ -5,7 +5,7 @@
 //              [--realtime FACTOR] [--max-seconds S] [--cs5513-conversion-us 19125]
 //              [--bootloader ELF|none] [--enable-pull down|up] [--backdrive-steps-per-s N]
 //              [--twi-fault SPEC]... [--ads-rate-error X] [--trace FILE] [--hang-at S]
-//              [--hang-masked 0|1]
+//              [--hang-masked 0|1] [--rdy-cut T0[:T1]]...
 //
 // Contract. Opens the pty (uart_bridge), connects to the plant, then holds the AVR in
 // reset until the plant sends 'G' (the host has the port open: like the DTR reset of
@@ -13,7 +13,8 @@
 // With --bootloader (the launcher passes build/sim_boot_stock.elf; sim/boot/) every
 // reset runs it first from 0x3E000, as BOOTRST makes the Mega do: ~1 s with the
 // application's pins floating, MCUSR handled as that bootloader does. SIGUSR1 is the
-// DTR pulse of a host opening the port again (external reset, EXTRF); a watchdog reset
+// DTR pulse of a host opening the port again (external reset, EXTRF); SIGUSR2 a
+// brown-out (BORF, SRAM kept, the A4988's translator back at Home); a watchdog reset
 // comes from simavr's WDT. After any reset the rig's parts carry on (they are not reset)
 // and re-arm their timers. --hang-at S makes the main loop hang at S s of device time
 // (a `rjmp .` loop entered with interrupts enabled, outside any ISR), as a firmware bug
@@ -51,10 +52,15 @@
 
 static volatile sig_atomic_t g_stop = 0;
 static volatile sig_atomic_t g_dtr = 0;
+static volatile sig_atomic_t g_brown = 0;
 static void on_signal(int sig) { g_stop = sig; }
 static void on_usr1(int sig) {
     (void)sig;
     g_dtr = 1;
+}
+static void on_usr2(int sig) {
+    (void)sig;
+    g_brown = 1;
 }
 
 static struct harness H;
@@ -76,7 +82,7 @@ static void usage(const char *msg) {
                     "  [--lead-ms MS] [--host-gone-ms MS] [--realtime FACTOR] [--max-seconds S]\n"
                     "  [--cs5513-conversion-us US] [--bootloader ELF|none] [--enable-pull down|up]\n"
                     "  [--backdrive-steps-per-s N] [--twi-fault SPEC]... [--ads-rate-error X]\n"
-                    "  [--trace FILE] [--hang-at S]\n", msg);
+                    "  [--trace FILE] [--hang-at S] [--hang-masked 0|1] [--rdy-cut T0[:T1]]...\n", msg);
     exit(2);
 }
 
@@ -186,6 +192,9 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--twi-fault")) {
             if (twi_bus_add_fault(v, err, sizeof err) < 0) usage(err);
         } else if (!strcmp(a, "--ads-rate-error")) ads_rate_error = atof(v);
+        else if (!strcmp(a, "--rdy-cut")) {
+            if (ads1115_add_rdy_cut(v) < 0) usage("--rdy-cut takes T0[:T1] (s, T1 >= T0), at most 4 times");
+        }
         else if (!strcmp(a, "--trace")) trace_path = v;
         else if (!strcmp(a, "--hang-at")) hang_at = atof(v);
         else if (!strcmp(a, "--hang-masked")) hang_masked = atoi(v) != 0;
@@ -238,6 +247,7 @@ int main(int argc, char **argv) {
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     signal(SIGUSR1, on_usr1);
+    signal(SIGUSR2, on_usr2);
     signal(SIGPIPE, SIG_IGN);
     H.plant = plant_connect(plant_path, err, sizeof err);
     if (!H.plant) {
@@ -268,6 +278,12 @@ int main(int argc, char **argv) {
             g_dtr = 0;
             H.resets++;
             reset_avr(MCUSR_EXTRF, "external");
+        }
+        if (g_brown) {  // the supply dipped: SRAM kept, BORF (the stock bootloader clears it)
+            g_brown = 0;
+            H.resets++;
+            drive_brown_out(&H);
+            reset_avr(MCUSR_BORF, "brown_out");
         }
         size_t pending = uart_bridge_service(&H, 0);
         drive_check_interlock(&H);

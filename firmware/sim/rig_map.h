@@ -60,6 +60,7 @@
 #define REG_MCUSR 0x54
 #define MCUSR_PORF 0
 #define MCUSR_EXTRF 1
+#define MCUSR_BORF 2
 #define MCUSR_WDRF 3
 #define REG_TCCR3B 0x91
 

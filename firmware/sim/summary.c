@@ -7,7 +7,9 @@
 
 static const char *vector_name(int v) {
     switch (v) {
+        case 5: return "INT4";
         case 12: return "WDT";
+        case 13: return "TIMER2_COMPA";
         case 17: return "TIMER1_COMPA";
         case 25: return "USART0_RX";
         case 26: return "USART0_UDRE";
@@ -48,9 +50,10 @@ int summary_write(const struct harness *h, const char *path, const char *elf, co
         fprintf(f, "%s{\"t_s\": %.6f, \"cause\": \"%s\"}", i ? ", " : "", h->reset_t_s[i], h->reset_cause[i]);
     fprintf(f, "],\n  \"clock_zero_s\": %.6f,\n", (double)h->t3_zero_cycle / HZ_CPU);
     fprintf(f, "  \"steps\": {\"position\": %ld, \"total\": %llu, \"while_disabled\": %llu,"
-               " \"backdriven\": %llu, \"min_high_cycles\": %llu, \"min_low_cycles\": %llu},\n",
+               " \"backdriven\": %llu, \"home_shift\": %lld, \"min_high_cycles\": %llu, \"min_low_cycles\": %llu},\n",
             (long)d->steps, (unsigned long long)d->steps_total, (unsigned long long)d->steps_while_disabled,
-            (unsigned long long)d->steps_backdriven, (unsigned long long)d->min_step_high_cycles,
+            (unsigned long long)d->steps_backdriven, (long long)d->steps_home_shift,
+            (unsigned long long)d->min_step_high_cycles,
             (unsigned long long)d->min_step_low_cycles);
     fprintf(f, "  \"drive\": {\"enabled\": %s, \"disables\": %llu, \"last_disable_s\": %.6f,"
                " \"sense_on\": %s, \"last_sense_off_s\": %.6f},\n",
@@ -87,12 +90,13 @@ int summary_write(const struct harness *h, const char *path, const char *elf, co
             (unsigned long long)h->twi_stuck_events, (unsigned long long)h->twi_manual_clocks,
             (unsigned long long)h->twi_releases);
     fprintf(f, "  \"adc\": {\"ads1115_conversions\": %llu, \"ads1115_alerts\": %llu, \"ads1115_rdy_pulses\": %llu,"
-               " \"ads1115_unread\": %llu, \"ads1115_read_latency_max_us\": %.1f,"
+               " \"ads1115_rdy_pulses_cut\": %llu, \"ads1115_unread\": %llu, \"ads1115_read_latency_max_us\": %.1f,"
                " \"cs5513_conversions\": %llu,"
                " \"cs5513_words_read\": %llu, \"cs5513_partial_reads\": %llu, \"cs5513_od_words\": %llu,"
                " \"cs5513_sclk_violations\": %llu, \"plant_queries\": %llu},\n",
             (unsigned long long)h->ads_conversions, (unsigned long long)h->ads_alerts,
-            (unsigned long long)h->ads_rdy_pulses, (unsigned long long)h->ads_unread, h->ads_read_latency_max_us,
+            (unsigned long long)h->ads_rdy_pulses, (unsigned long long)h->ads_rdy_pulses_cut,
+            (unsigned long long)h->ads_unread, h->ads_read_latency_max_us,
             (unsigned long long)h->cs_conversions, (unsigned long long)h->cs_words_read,
             (unsigned long long)h->cs_partial_reads, (unsigned long long)h->cs_od_words,
             (unsigned long long)h->cs_sclk_violations, (unsigned long long)h->plant_queries);

@@ -11,7 +11,10 @@
 //   stretch:T0:T1:US    every byte takes US microseconds longer (clock stretching);
 //   stuck:T0[:CLOCKS]   from T0 a slave holds SDA low: no TWI operation completes (TWINT
 //                       never rises) until the master, with the TWI off, clocks SCL by
-//                       hand CLOCKS times (default 9; the slave then lets SDA go).
+//                       hand CLOCKS times (default 9; the slave then lets SDA go);
+//   nackcfg:N           the ADS1115 does not acknowledge the first byte written to its
+//                       config register, the first N times (wherever they fall in time:
+//                       the switch into continuous mode, its retries).
 // SDA and SCL have the board's pull-ups (wiring.c). Counted in the summary: bytes,
 // START/STOP, NACKs injected, stretched bytes, stuck events, manual SCL clocks, releases.
 #include <stdio.h>
@@ -27,7 +30,7 @@
 
 #define MAX_FAULTS 8
 
-enum fault_kind { FAULT_NACK, FAULT_STRETCH, FAULT_STUCK };
+enum fault_kind { FAULT_NACK, FAULT_STRETCH, FAULT_STUCK, FAULT_NACK_CONFIG };
 
 // Parsed from the command line before the harness exists (twi_bus_add_fault).
 static struct {
@@ -59,6 +62,17 @@ static int window(int kind, double *arg) {
     for (int i = 0; i < g_n_faults; ++i) {
         if (g_faults[i].kind == kind && t >= g_faults[i].t0 && t < g_faults[i].t1) {
             if (arg) *arg = g_faults[i].arg;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+int twi_bus_nack_config(void) {
+    for (int i = 0; i < g_n_faults; ++i) {
+        if (g_faults[i].kind == FAULT_NACK_CONFIG && g_faults[i].arg >= 1) {
+            g_faults[i].arg -= 1;
+            g.h->twi_naks_injected++;
             return 1;
         }
     }
@@ -165,8 +179,14 @@ int twi_bus_add_fault(const char *spec, char *err, size_t errlen) {
     if (!strcmp(kind, "nack") && n == 3) k = FAULT_NACK;
     else if (!strcmp(kind, "stretch") && n == 4) k = FAULT_STRETCH;
     else if (!strcmp(kind, "stuck") && n >= 2) k = FAULT_STUCK;
-    else {
-        snprintf(err, errlen, "--twi-fault %s: expected nack:T0:T1, stretch:T0:T1:US or stuck:T0[:CLOCKS]", spec);
+    else if (!strcmp(kind, "nackcfg") && n == 2 && a >= 1) {
+        g_faults[g_n_faults].kind = FAULT_NACK_CONFIG;
+        g_faults[g_n_faults].arg = a;
+        g_n_faults++;
+        return 0;
+    } else {
+        snprintf(err, errlen, "--twi-fault %s: expected nack:T0:T1, stretch:T0:T1:US, stuck:T0[:CLOCKS] or nackcfg:N",
+                 spec);
         return -1;
     }
     if (a < 0 || (k != FAULT_STUCK && b < a)) {

@@ -10,26 +10,27 @@ namespace fw {
 FakeBoard::FakeBoard()
     : step_ring_size(32), tx_ring_size(512), tx_drain_bytes_per_ms(0), reason(2), position_counts(1000),
       position_start_fails(false), position_poll_fails(false), position_latency_us(0), position_conversion_us(1163),
-      resistance_counts(50000),
+      rdy_dead(false), continuous_start_failures(0), resistance_counts(50000),
       resistance_flags(0), resistance_start_fails(false), resistance_poll_fails(false), resistance_latency_us(0),
       step_glitch(0), kept_valid(false), kept_steps(0), uart_overrun_count(0), uart_frame_error_count(0),
       i2c_recovery_count(0), now(0), position(0), min_position(0), max_position(0), steps_executed(0),
       min_interval_ticks(0xFFFFFFFFUL), heater_mV(0), heater_requested_mV(0), sense_on(false), motor_enabled(false),
-      kicks(0), continuous_reads(0), interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), underruns(0),
-      truncations(0), record_steps(0), record_valid(false), record_writes(0), rx_head_(0), rx_count_(0),
+      kicks(0), continuous_reads(0), continuous_setups(0), fast_underruns(0), long_steps(0), edges_logged(0),
+      interlock_violations(0), sense_refusals(0), unsettled_conversions(0), halts(0), underruns(0),
+      truncations(0), record_steps(0), record_valid(false), record_armed(false), record_writes(0), rx_head_(0), rx_count_(0),
       tx_len_(0), tx_pending_milli_(0), step_head_(0), step_count_(0), last_edge_tick_(0), carry_(0), dir_(1),
       expect_more_(false), position_busy_(false),
       position_started_(0), resistance_busy_(false), resistance_started_(0), sense_since_(0), continuous_(false),
-      continuous_since_(0), conversions_taken_(0) {}
+      continuous_since_(0), edges_done_(0), every_(1), until_(1), have_prev_(false), prev_us_(0), prev_pos_(0),
+      last_edge_us_(0), conv_head_(0), conv_count_(0), conv_lost_(0), last_interval_ticks_(0) {}
 
-void FakeBoard::advance_us(uint64_t us) {
-    const uint64_t target = now + us;
-    const uint64_t target_tick = target * (STEP_TICK_HZ / 1000000UL);
+void FakeBoard::run_steps_until(uint64_t target_tick) {
     while (step_count_ > 0) {
         Step& s = steps_[step_head_];
         const uint32_t sum = s.q8 + carry_;
         if (last_edge_tick_ + (sum >> 8) > target_tick) break;
         last_edge_tick_ += sum >> 8;
+        last_interval_ticks_ = sum >> 8;
         carry_ = static_cast<uint8_t>(sum & 0xFF);
         s.q8 += s.add;
         position += s.dir + (s.dir > 0 ? step_glitch : -step_glitch);
@@ -39,8 +40,57 @@ void FakeBoard::advance_us(uint64_t us) {
         if (--s.count > 0) continue;
         step_head_ = static_cast<uint8_t>((step_head_ + 1) % STEP_RING_MAX);
         --step_count_;
-        if (step_count_ == 0 && expect_more_ && underruns != 0xFFFF) ++underruns;  // ran dry mid-move
+        if (step_count_ == 0 && expect_more_) {  // ran dry mid-move
+            if (underruns != 0xFFFF) ++underruns;
+            if (last_interval_ticks_ < STEP_TICK_HZ / cfg::START_STOP_STEPS_PER_S && fast_underruns != 0xFFFF)
+                ++fast_underruns;
+        }
     }
+}
+
+// An ALERT/RDY edge at t_us (the AVR board's INT4 ISR): it ends one conversion and
+// starts the next; every `every_`-th one queues the sample of the conversion it ends,
+// stamped with that conversion's start (the previous edge) and the position then.
+void FakeBoard::conversion_edge(uint64_t t_us) {
+    if (edges_logged < EDGE_LOG) {
+        edge_t_us[edges_logged] = t_us;
+        edge_position[edges_logged] = position;
+        ++edges_logged;
+    }
+    ++edges_done_;
+    last_edge_us_ = t_us;
+    if (have_prev_ && --until_ == 0) {
+        until_ = every_;
+        if (conv_count_ >= CONV_SLOTS) {
+            if (conv_lost_ != 0xFF) ++conv_lost_;
+        } else {
+            ConvSample& c = conv_[(conv_head_ + conv_count_) % CONV_SLOTS];
+            c.t_us = prev_us_;
+            c.step_position = prev_pos_;
+            c.counts = position_counts;
+            c.ok = !position_poll_fails;
+            c.lost = conv_lost_;
+            conv_lost_ = 0;
+            ++conv_count_;
+        }
+    }
+    have_prev_ = true;
+    prev_us_ = t_us;
+    prev_pos_ = position;
+}
+
+void FakeBoard::advance_us(uint64_t us) {
+    const uint64_t target = now + us;
+    const uint64_t tick_per_us = STEP_TICK_HZ / 1000000UL;
+    if (continuous_ && !rdy_dead && position_conversion_us) {
+        for (;;) {
+            const uint64_t edge = continuous_since_ + (edges_done_ + 1) * position_conversion_us;
+            if (edge > target) break;
+            run_steps_until(edge * tick_per_us);
+            conversion_edge(edge);
+        }
+    }
+    run_steps_until(target * tick_per_us);
     if (tx_drain_bytes_per_ms) {
         uint64_t drained = us * tx_drain_bytes_per_ms;  // milli-bytes
         tx_pending_milli_ = drained >= tx_pending_milli_ ? 0 : tx_pending_milli_ - drained;
@@ -105,8 +155,13 @@ uint8_t FakeBoard::step_space() {
     return step_count_ >= size ? 0 : static_cast<uint8_t>(size - step_count_);
 }
 
-void FakeBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) {
-    if (step_space() == 0 || count == 0) return;
+bool FakeBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) {
+    if (step_space() == 0 || count == 0) return false;
+    // the AVR board's rule: only a lone step may be longer than a run's steps
+    const uint32_t max_q8 = STEP_MAX_RUN_INTERVAL_TICKS << 8;
+    const int32_t last_q8 = static_cast<int32_t>(interval_q8) + static_cast<int32_t>(add_q8) * (count - 1);
+    if (count > 1 && (interval_q8 > max_q8 || last_q8 > static_cast<int32_t>(max_q8))) return false;
+    if (interval_q8 > max_q8) ++long_steps;
     expect_more_ = !last;
     if (step_count_ == 0) {
         last_edge_tick_ = now * (STEP_TICK_HZ / 1000000UL);  // first step: from now
@@ -122,6 +177,7 @@ void FakeBoard::step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8
     s.add = add_q8;
     s.count = count;
     ++step_count_;
+    return true;
 }
 
 void FakeBoard::step_halt() {
@@ -196,27 +252,37 @@ int8_t FakeBoard::position_poll(int16_t& counts) {
     return 1;
 }
 
-bool FakeBoard::position_continuous(bool on) {
+bool FakeBoard::position_continuous(bool on, uint8_t every) {
+    continuous_ = false;
+    conv_count_ = 0;
+    conv_lost_ = 0;
+    if (!on) return !position_start_fails;
+    ++continuous_setups;
     if (position_start_fails) return false;
-    continuous_ = on;
+    if (continuous_start_failures) {
+        --continuous_start_failures;
+        return false;
+    }
+    continuous_ = true;
     continuous_since_ = now;
-    conversions_taken_ = 0;
+    edges_done_ = 0;
+    every_ = until_ = every ? every : 1;
+    have_prev_ = false;
     return true;
 }
 
-uint8_t FakeBoard::position_ready() {
-    if (!continuous_ || position_conversion_us == 0) return 0;
-    const uint64_t done = (now - continuous_since_) / position_conversion_us;
-    const uint64_t fresh = done - conversions_taken_;
-    conversions_taken_ = done;
-    return static_cast<uint8_t>(fresh > 255 ? 255 : fresh);
+bool FakeBoard::position_take(ConvSample& s) {
+    if (conv_count_ == 0) return false;
+    s = conv_[conv_head_];
+    conv_head_ = static_cast<uint8_t>((conv_head_ + 1) % CONV_SLOTS);
+    --conv_count_;
+    ++continuous_reads;
+    return true;
 }
 
-int8_t FakeBoard::position_read(int16_t& counts) {
-    if (!continuous_ || position_poll_fails) return -1;
-    ++continuous_reads;
-    counts = position_counts;
-    return 1;
+uint16_t FakeBoard::position_edges(uint64_t& last_us) {
+    last_us = last_edge_us_;
+    return continuous_ ? static_cast<uint16_t>(edges_done_) : 0;  // wraps, as the AVR board's
 }
 
 bool FakeBoard::resistance_start() {

@@ -40,6 +40,8 @@ public:
     bool position_poll_fails;
     uint32_t position_latency_us;
     uint32_t position_conversion_us;  // continuous mode: a conversion (ALERT/RDY pulse) every this long
+    bool rdy_dead;                   // continuous mode: the ALERT/RDY edges never arrive (an unwired D2)
+    uint8_t continuous_start_failures;  // the next this many continuous set-ups fail (a NACK)
     int32_t resistance_counts;
     uint8_t resistance_flags;
     bool resistance_start_fails;
@@ -64,7 +66,14 @@ public:
     bool sense_on;
     bool motor_enabled;
     uint32_t kicks;
-    uint32_t continuous_reads;       // position_read() calls in continuous mode
+    uint32_t continuous_reads;       // continuous samples read (position_take)
+    uint32_t continuous_setups;      // position_continuous(true, ...) calls
+    uint16_t fast_underruns;         // underruns with the last step faster than the start/stop speed
+    uint32_t long_steps;             // steps pushed alone beyond STEP_MAX_RUN_INTERVAL_TICKS
+    static const uint32_t EDGE_LOG = 4096;
+    uint64_t edge_t_us[EDGE_LOG];    // every ALERT/RDY edge (the true conversion starts) ...
+    int32_t edge_position[EDGE_LOG]; // ... and the step position at it
+    uint32_t edges_logged;
     uint32_t interlock_violations;   // heater switched on while sense current was on
     uint32_t sense_refusals;         // sense_current(true) refused (heater on)
     uint32_t unsettled_conversions;  // resistance started without a settled sense current
@@ -73,6 +82,7 @@ public:
     uint32_t truncations;
     int32_t record_steps;            // the last position_record()
     bool record_valid;
+    bool record_armed;
     uint32_t record_writes;
 
     // --- Board ---------------------------------------------------------------------
@@ -84,7 +94,7 @@ public:
     uint16_t serial_write(const uint8_t* data, uint16_t n) override;
     void motor_enable(bool on) override { motor_enabled = on; }
     uint8_t step_space() override;
-    void step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
+    bool step_push(int8_t direction, uint32_t interval_q8, int16_t add_q8, uint8_t count, bool last) override;
     bool step_busy() override { return step_count_ > 0; }
     // steps still to be emitted from the ring (every run's count)
     uint32_t steps_pending() const {
@@ -96,13 +106,15 @@ public:
     void step_set_position(int32_t steps) override { position = steps; }
     void step_halt() override;
     uint32_t step_truncate(uint8_t keep, int32_t& rest_position) override;
+    void step_end_train() override { expect_more_ = false; }
     uint16_t step_underruns() override { return underruns; }
+    uint16_t step_fast_underruns() override { return fast_underruns; }
     uint16_t heater_set_mV(uint16_t mV) override;
     bool sense_current(bool on) override;
     bool position_start() override;
-    bool position_continuous(bool on) override;
-    uint8_t position_ready() override;
-    int8_t position_read(int16_t& counts) override;
+    bool position_continuous(bool on, uint8_t every) override;
+    bool position_take(ConvSample& s) override;
+    uint16_t position_edges(uint64_t& last_us) override;
     int8_t position_poll(int16_t& counts) override;
     bool resistance_start() override;
     int8_t resistance_poll(int32_t& counts, uint8_t& flags) override;
@@ -112,9 +124,10 @@ public:
         steps = kept_steps;
         return kept_valid;
     }
-    void position_record(int32_t steps, bool valid) override {
+    void position_record(int32_t steps, bool valid, bool armed) override {
         record_steps = steps;
         record_valid = valid;
+        record_armed = armed;
         ++record_writes;
     }
     uint16_t uart_overruns() override { return uart_overrun_count; }
@@ -133,6 +146,9 @@ private:
     uint8_t tx_[TX_CAP];
     uint32_t tx_len_;
     uint64_t tx_pending_milli_;  // bytes not yet drained, in 1/1000 byte
+    static const uint8_t CONV_SLOTS = 8;  // the AVR board's ring of continuous samples
+    void run_steps_until(uint64_t tick);
+    void conversion_edge(uint64_t t_us);
     Step steps_[STEP_RING_MAX];
     uint8_t step_head_, step_count_;
     uint64_t last_edge_tick_;
@@ -146,7 +162,15 @@ private:
     uint64_t sense_since_;
     bool continuous_;
     uint64_t continuous_since_;
-    uint64_t conversions_taken_;  // continuous conversions position_ready() has reported
+    uint64_t edges_done_;         // conversion edges since continuous_since_
+    uint8_t every_, until_;
+    bool have_prev_;
+    uint64_t prev_us_;
+    int32_t prev_pos_;
+    uint64_t last_edge_us_;
+    ConvSample conv_[CONV_SLOTS];
+    uint8_t conv_head_, conv_count_, conv_lost_;
+    uint32_t last_interval_ticks_;
 };
 
 }  // namespace fw

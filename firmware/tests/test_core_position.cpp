@@ -112,7 +112,7 @@ TEST(core_stop_fast_decelerates_at_the_limit_slow_stops_at_once) {
     h.stop();
     const int32_t rest = static_cast<int32_t>(h.replies[1].f[4]);
     // v^2 / 2a = 16000^2 / 640000 = 400 steps (plus the steps already committed)
-    CHECK(rest >= at + 400 && rest <= at + 400 + 2 + cfg::STOP_KEEP_STEPS);
+    CHECK(rest >= at + 400 && rest <= at + 400 + 2 + cfg::STOP_KEEP_MAX_STEPS);
     h.heartbeat();
     CHECK_EQ(last_status_field(h, QS_STATE) & ds::STOPPING, ds::STOPPING);
     // a queued command waits until the motor is at rest, then runs
@@ -134,7 +134,7 @@ TEST(core_stop_fast_decelerates_at_the_limit_slow_stops_at_once) {
     const int32_t where = slow.board.position;
     slow.clear();
     slow.stop();
-    CHECK(slow.replies[1].f[4] <= where + 1 + cfg::STOP_KEEP_STEPS);
+    CHECK(slow.replies[1].f[4] <= where + 1 + cfg::STOP_KEEP_STEPS);  // slow: only the fewest are kept
     slow.run_us(200000);
     CHECK_EQ(slow.board.position, slow.replies[1].f[4]);
 }
@@ -226,6 +226,17 @@ TEST(core_step_underrun_reported_as_event_and_status) {
     if (i >= 0) CHECK(h.replies[i].f[3] >= 1);
     h.heartbeat();
     CHECK_EQ(last_status_field(h, QS_UNDERRUNS), h.board.underruns);
+    // at speed (above the start/stop speed) steps may have been lost: the position is
+    // suspect (EVENT position_suspect, QUEUE_STATUS state) until SET_POSITION
+    CHECK(h.board.fast_underruns > 0);
+    CHECK(h.find(proto::Event::ID, ev::POSITION_SUSPECT) >= 0);
+    CHECK(h.dev.position_suspect());
+    CHECK_EQ(last_status_field(h, QS_STATE) & ds::POSITION_SUSPECT, ds::POSITION_SUSPECT);
+    h.run_until_event(ev::QUEUE_EMPTY, 3000000);
+    h.set_position(0);
+    h.clear();
+    h.heartbeat();
+    CHECK_EQ(last_status_field(h, QS_STATE) & ds::POSITION_SUSPECT, 0);
     // the same move with the ring deep enough and a fast loop: none
     Harness ok;
     ok.keepalive = true;
@@ -265,4 +276,84 @@ TEST(core_identity_reports_sampling_floor_and_release_time) {
     CHECK_EQ(h.replies[0].id, proto::Identity::ID);
     CHECK_EQ(h.replies[0].f[14], cfg::MIN_SAMPLE_PERIOD_US);
     CHECK_EQ(h.replies[0].f[15], cfg::FAULT_RELEASE_MS);
+}
+
+// A STOP below the start/stop speed (sqrt(2 a_max) = 800 steps/s) stops at once: the
+// steps kept end the train, and their running dry is no underrun. (Before: a false
+// STEP_UNDERRUN, the promise of more steps left standing.)
+TEST(core_slow_stop_is_no_underrun) {
+    Harness h;
+    h.keepalive = true;
+    h.boot();
+    h.move_to(1, 100000, 500, 1000);
+    h.run_us(1500000);
+    CHECK(h.board.step_busy());
+    h.stop();
+    h.run_us(300000);
+    CHECK(!h.board.step_busy());
+    CHECK_EQ(h.board.underruns, 0);
+    CHECK_EQ(h.count(proto::Event::ID, ev::STEP_UNDERRUN), 0);
+}
+
+// Below the start/stop speed an underrun is only a pause: the position stays trusted
+// (above it, core_step_underrun_reported_as_event_and_status: suspect).
+TEST(core_slow_underrun_leaves_the_position_trusted) {
+    Harness slow;
+    slow.keepalive = true;
+    slow.board.step_ring_size = 1;
+    slow.step_us = 20000;
+    slow.boot();
+    slow.move_to(1, 400, 400, cfg::MAX_ACCEL_STEPS_PER_S2);
+    slow.run_until_event(ev::QUEUE_EMPTY, 5000000);
+    CHECK(slow.board.underruns > 0);
+    CHECK_EQ(slow.board.fast_underruns, 0);
+    CHECK(!slow.dev.position_suspect());
+    CHECK_EQ(slow.count(proto::Event::ID, ev::POSITION_SUSPECT), 0);
+}
+
+// ARM_RESET: the host means to reset the board (it reopens the port). Refused while the
+// position is unknown or a move runs; accepted at rest it arms the record; a move
+// disarms it; a boot spends it.
+TEST(core_arm_reset_arms_the_record_at_rest_only) {
+    Harness h;
+    h.board.kept_valid = false;
+    h.boot();
+    CHECK(!h.board.record_armed);
+    uint16_t s = h.send(proto::ArmReset::ID, 0, 0);
+    CHECK_EQ(h.ack_status(s, proto::ArmReset::ID), st::BAD_STATE);  // position unknown
+    h.set_position(0);
+    h.move_to(1, 3200, 16000, 320000);
+    s = h.send(proto::ArmReset::ID, 0, 0);
+    CHECK_EQ(h.ack_status(s, proto::ArmReset::ID), st::BAD_STATE);  // moving
+    h.run_until_event(ev::QUEUE_EMPTY, 2000000);
+    CHECK(!h.board.record_armed);
+    h.clear();
+    s = h.send(proto::ArmReset::ID, 0, 0);
+    CHECK_EQ(h.ack_status(s, proto::ArmReset::ID), st::OK);
+    CHECK(h.board.record_valid && h.board.record_armed && h.board.record_steps == 3200);
+    h.clear();
+    h.move_to(2, 0, 16000, 320000);  // a move disarms it, for good
+    h.run_until_event(ev::QUEUE_EMPTY, 2000000);
+    CHECK_EQ(h.board.position, 0);
+    CHECK(h.board.record_valid && !h.board.record_armed);
+    // a boot spends the arm: the next reset is not armed
+    Harness b;
+    b.board.kept_valid = true;
+    b.board.kept_steps = 3200;
+    b.boot();
+    CHECK(b.dev.position_known());
+    CHECK(b.board.record_valid && !b.board.record_armed);
+}
+
+// A slow step longer than the generator takes in a run goes alone (the board chains it);
+// the move still ends exactly where it should.
+TEST(core_slow_steps_go_alone) {
+    Harness h;
+    h.keepalive = true;
+    h.boot();
+    h.move_to(1, 20, 20, 40);  // 20 steps/s: 100,000 ticks a step
+    h.run_until_event(ev::QUEUE_EMPTY, 5000000);
+    CHECK_EQ(h.board.position, 20);
+    CHECK(h.board.long_steps >= 15);
+    CHECK_EQ(h.board.underruns, 0);
 }

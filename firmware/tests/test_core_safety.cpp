@@ -79,7 +79,7 @@ TEST(core_safety_watchdog_trip) {
         rest = static_cast<int32_t>(h.replies[i].f[4]);  // where the motor comes to rest
         // at 1000 steps/s a stop at the limit takes 1.6 steps; at most the pending edge
         // and cfg::STOP_KEEP_STEPS more run first
-        CHECK(rest >= h.board.position && rest <= h.board.position + 2 + cfg::STOP_KEEP_STEPS);
+        CHECK(rest >= h.board.position && rest <= h.board.position + 2 + cfg::STOP_KEEP_MAX_STEPS);
     }
     CHECK_EQ(h.board.heater_mV, 0);  // at once, not after the deceleration
     CHECK_EQ(h.dev.queue_free(), cfg::QUEUE_SLOTS);
@@ -130,7 +130,7 @@ TEST(core_safety_stop_mid_move) {
     const int32_t rest = static_cast<int32_t>(h.replies[1].f[4]);
     // 8000 steps/s decelerating at the limit (320000 steps/s^2) takes 100 steps, 25 ms:
     // far shorter than the move's own deceleration (2000 steps)
-    CHECK(rest > at_stop + 90 && rest < at_stop + 110 + cfg::STOP_KEEP_STEPS);
+    CHECK(rest > at_stop + 90 && rest < at_stop + 110 + cfg::STOP_KEEP_MAX_STEPS);
     CHECK_EQ(h.board.heater_mV, 0);
     CHECK(!h.dev.executing());
     CHECK(h.dev.stopping());

@@ -6,8 +6,12 @@ temperatures).
 
 Contract:
 
-* :data:`DIMENSIONS` maps a dimension to ``{unit: (factor, offset)}``; spellings are
-  matched exactly first, then case-insensitively (``Ohm``, ``MM``).
+* :data:`DIMENSIONS` maps a dimension to ``{unit: (factor, offset)}``, every SI prefix
+  (:data:`PREFIXES`: G, M, k, h, c, m, u/µ, n) a unit takes included. SI prefixes are
+  case-sensitive: ``Mohm`` is a megaohm, ``mohm`` a milliohm, ``mPa`` a millipascal. A
+  spelling that is no unit in its own case is read in another only when that gives one
+  unit (``OHM``, ``Kohm``, ``MS``); when it gives two (``MOHM``, ``MPA``) it is refused
+  with :class:`AmbiguousUnitError` naming both readings.
 * :func:`parse_unit` reads a simple unit (``mm``, ``degC``) or a product/quotient of
   simple units with integer powers (``cm/turn^2``, ``ohm/cm``, ``1/s``, ``deg/s``,
   ``N*m``) and returns a :class:`Unit`: its dimension signature (``{dimension:
@@ -27,33 +31,65 @@ from __future__ import annotations
 
 import math
 import re
+import unicodedata
 from dataclasses import dataclass
 
+#: SI prefixes, exact case: ``M`` is mega and ``m`` milli, never folded into each other
+PREFIXES: dict[str, float] = {"G": 1e9, "M": 1e6, "k": 1e3, "h": 1e2, "c": 1e-2, "m": 1e-3, "u": 1e-6,
+                              "\u00b5": 1e-6, "\u03bc": 1e-6, "n": 1e-9}
+PREFIX_NAMES = {"G": "giga", "M": "mega", "k": "kilo", "h": "hecto", "c": "centi", "m": "milli", "u": "micro",
+                "\u00b5": "micro", "\u03bc": "micro", "n": "nano"}
+_MICRO = "u\u00b5\u03bc"
 #: The weight of one gram under standard gravity, N (a hanging mass in g -> the load in N).
 G_N_PER_G = 9.80665e-3
-#: dimension -> {unit: (factor to the base unit, offset)}; the first unit is the base.
-DIMENSIONS: dict[str, dict[str, tuple[float, float]]] = {
-    "dimensionless": {"1": (1.0, 0.0), "%": (0.01, 0.0), "ppm": (1e-6, 0.0), "ustrain": (1e-6, 0.0)},
-    "time": {"s": (1.0, 0.0), "ms": (1e-3, 0.0), "us": (1e-6, 0.0), "min": (60.0, 0.0), "h": (3600.0, 0.0)},
-    # twist and angles are one dimension: a motor turn is 360 degrees
-    "angle": {"turn": (1.0, 0.0), "turns": (1.0, 0.0), "rev": (1.0, 0.0), "rotation": (1.0, 0.0),
-              "deg": (1.0 / 360.0, 0.0), "°": (1.0 / 360.0, 0.0), "rad": (1.0 / (2.0 * math.pi), 0.0)},
-    "length": {"mm": (1.0, 0.0), "um": (1e-3, 0.0), "cm": (10.0, 0.0), "m": (1000.0, 0.0), "in": (25.4, 0.0)},
-    "resistance": {"ohm": (1.0, 0.0), "Ω": (1.0, 0.0), "mohm": (1e-3, 0.0), "uohm": (1e-6, 0.0),
-                   "kohm": (1e3, 0.0)},
-    "voltage": {"V": (1.0, 0.0), "mV": (1e-3, 0.0)},
-    "current": {"A": (1.0, 0.0), "mA": (1e-3, 0.0), "uA": (1e-6, 0.0)},
-    "force": {"N": (1.0, 0.0), "mN": (1e-3, 0.0), "kN": (1e3, 0.0), "lbf": (4.4482216152605, 0.0)},
-    "mass": {"g": (1.0, 0.0), "kg": (1e3, 0.0), "mg": (1e-3, 0.0)},
-    "temperature": {"degC": (1.0, 0.0), "C": (1.0, 0.0), "°C": (1.0, 0.0), "K": (1.0, -273.15),
-                    "degF": (5.0 / 9.0, -32.0 * 5.0 / 9.0)},
-    "pressure": {"kPa": (1.0, 0.0), "Pa": (1e-3, 0.0), "MPa": (1e3, 0.0), "GPa": (1e6, 0.0), "bar": (100.0, 0.0),
-                 "mbar": (0.1, 0.0), "psi": (6.894757293168, 0.0), "ksi": (6894.757293168, 0.0)},
-    "power": {"W": (1.0, 0.0), "mW": (1e-3, 0.0)},
-    "energy": {"J": (1.0, 0.0)},
-}
 
-#: unit spelling -> dimension (exact spellings; see :func:`_lookup` for case folding)
+#: dimension -> [(spellings of one unit, factor to the dimension's base unit, offset, prefixes it takes)];
+#: the first spelling of the first entry is the base. Prefixed spellings are made from these.
+_BASES: dict[str, list[tuple[tuple[str, ...], float, float, str]]] = {
+    "dimensionless": [(("1",), 1.0, 0.0, ""), (("%",), 0.01, 0.0, ""), (("ppm",), 1e-6, 0.0, ""),
+                      (("strain",), 1.0, 0.0, _MICRO)],
+    "time": [(("s",), 1.0, 0.0, "m" + _MICRO), (("min",), 60.0, 0.0, ""), (("h",), 3600.0, 0.0, "")],
+    # twist and angles are one dimension: a motor turn is 360 degrees
+    "angle": [(("turn", "turns", "rev", "rotation"), 1.0, 0.0, ""), (("deg", "\u00b0"), 1.0 / 360.0, 0.0, ""),
+              (("rad",), 1.0 / (2.0 * math.pi), 0.0, "m")],
+    "length": [(("m",), 1000.0, 0.0, "cm" + _MICRO + "n"), (("in",), 25.4, 0.0, "")],
+    "resistance": [(("ohm", "Ohm", "\u03a9", "\u2126"), 1.0, 0.0, "GMkm" + _MICRO)],
+    "voltage": [(("V",), 1.0, 0.0, "Mkm" + _MICRO)],
+    "current": [(("A",), 1.0, 0.0, "km" + _MICRO + "n")],
+    "force": [(("N",), 1.0, 0.0, "Mkm" + _MICRO), (("lbf",), 4.4482216152605, 0.0, "")],
+    "mass": [(("g",), 1.0, 0.0, "Mkm" + _MICRO)],
+    "temperature": [(("degC", "C", "\u00b0C"), 1.0, 0.0, ""), (("K",), 1.0, -273.15, ""),
+                    (("degF", "\u00b0F"), 5.0 / 9.0, -32.0 * 5.0 / 9.0, "")],
+    "pressure": [(("Pa",), 1e-3, 0.0, "GMkhm"), (("bar",), 100.0, 0.0, "m"), (("psi",), 6.894757293168, 0.0, ""),
+                 (("ksi",), 6894.757293168, 0.0, "")],
+    "power": [(("W",), 1.0, 0.0, "Mkm" + _MICRO)],
+    "energy": [(("J",), 1.0, 0.0, "Mkm" + _MICRO)],
+}
+#: the base unit of each dimension (factor 1): what DIMENSIONS lists first
+_BASE_UNIT = {"dimensionless": "1", "time": "s", "angle": "turn", "length": "mm", "resistance": "ohm",
+              "voltage": "V", "current": "A", "force": "N", "mass": "g", "temperature": "degC",
+              "pressure": "kPa", "power": "W", "energy": "J"}
+
+
+def _table() -> dict[str, dict[str, tuple[float, float]]]:
+    out: dict[str, dict[str, tuple[float, float]]] = {}
+    for dim, bases in _BASES.items():
+        units: dict[str, tuple[float, float]] = {}
+        for spellings, f, o, prefixes in bases:
+            for sp in spellings:
+                units[sp] = (f, o)
+                for p in prefixes:
+                    units[p + sp] = (f * PREFIXES[p], o)
+        base = _BASE_UNIT[dim]
+        out[dim] = {base: units.pop(base), **units}
+    return out
+
+
+#: dimension -> {unit: (factor to the base unit, offset)}; the first unit is the base. Every SI
+#: prefix a unit takes is listed, in its exact case (``mohm`` milliohm, ``Mohm`` megaohm).
+DIMENSIONS: dict[str, dict[str, tuple[float, float]]] = _table()
+
+#: unit spelling -> dimension (exact spellings; see :func:`_lookup` for other cases)
 _BY_UNIT: dict[str, str] = {u: d for d, table in DIMENSIONS.items() for u in table}
 
 
@@ -94,6 +130,15 @@ class UnitError(ValueError):
     """A unit that is unknown or does not fit the quantity; the message names both."""
 
 
+class AmbiguousUnitError(UnitError):
+    """A spelling that is no unit in its own case and two units in another (``MOHM``); names both."""
+
+    def __init__(self, text: str, readings: list[str]) -> None:
+        self.text, self.readings = text, readings
+        super().__init__(f"unit '{text}' is ambiguous: it could be {' or '.join(_reading(u) for u in readings)}; "
+                         "SI prefixes are case-sensitive (M mega, m milli): write the one meant")
+
+
 @dataclass(frozen=True)
 class Unit:
     """A parsed unit: ``signature`` {dimension: power}, ``factor`` and ``offset`` to the base units."""
@@ -124,15 +169,36 @@ def signature_text(signature: tuple[tuple[str, int], ...]) -> str:
 
 
 def _lookup(name: str) -> tuple[str, float, float] | None:
-    """(dimension, factor, offset) of a simple unit, or None."""
+    """(dimension, factor, offset) of a simple unit, or None.
+
+    The exact spelling wins (SI prefixes are case-sensitive). Another case (``OHM``, ``Kohm``,
+    ``MS``) is read only when every known unit it could be has one value; when it could be
+    two (``MOHM``: megaohm or milliohm) :class:`AmbiguousUnitError` names both readings.
+    """
     dim = _BY_UNIT.get(name)
     if dim is None:
         folded = [u for u in _BY_UNIT if u.lower() == name.lower()]
-        if len(folded) != 1:
+        readings: dict[tuple[str, float, float], str] = {}
+        for u in folded:
+            f, o = DIMENSIONS[_BY_UNIT[u]][u]
+            readings.setdefault((_BY_UNIT[u], f, o), u)
+        if len(readings) > 1:
+            raise AmbiguousUnitError(name, list(readings.values()))
+        if not readings:
             return None
         name, dim = folded[0], _BY_UNIT[folded[0]]
     f, o = DIMENSIONS[dim][name]
     return dim, f, o
+
+
+def _reading(unit: str) -> str:
+    """``Mohm`` -> ``Mohm (mega, = 1e+06 ohm)``: one reading of a spelling, for messages."""
+    dim = _BY_UNIT[unit]
+    f, _ = DIMENSIONS[dim][unit]
+    base = next(iter(DIMENSIONS[dim]))
+    prefix = next((PREFIX_NAMES[p] for p in PREFIXES if len(unit) > len(p) and unit.startswith(p)
+                   and unit not in {sp for b in _BASES[dim] for sp in b[0]}), "")
+    return f"{unit} ({prefix + ', ' if prefix else ''}= {f:g} {base})"
 
 
 _TERM = re.compile(r"^([^\^]+?)(?:\^(-?\d+))?$")
@@ -171,9 +237,24 @@ def parse_unit(text: str) -> Unit:
     return Unit(s, sig, factor, 0.0)
 
 
+def multiply(a: Unit, b: Unit) -> Unit:
+    """The product of two units (``V`` x ``mm/V`` = ``mm``); offsets are refused, as in compound units."""
+    if a.offset or b.offset:
+        raise UnitError(f"'{a.text if a.offset else b.text}' has an offset (a temperature scale) and cannot be "
+                        "multiplied by another unit")
+    powers = dict(a.signature)
+    for d, p in b.signature:
+        powers[d] = powers.get(d, 0) + p
+    return Unit(f"{a.text}*{b.text}", tuple(sorted((d, p) for d, p in powers.items() if p)), a.factor * b.factor)
+
+
 def units_of(dimension: str) -> list[str]:
-    """The simple units of ``dimension`` (base unit first)."""
-    return list(DIMENSIONS[dimension])
+    """The simple units of ``dimension`` for messages: base unit first, then each unit in all its
+    spellings and with the ASCII prefixes it takes, in their exact case (``kohm``, ``Mohm``)."""
+    out = [_BASE_UNIT[dimension]]
+    for spellings, _, _, prefixes in _BASES[dimension]:
+        out += list(spellings) + [p + spellings[0] for p in prefixes if p not in "\u00b5\u03bc"]
+    return list(dict.fromkeys(unicodedata.normalize("NFKC", u) for u in out))  # the ohm sign is shown as omega
 
 
 def convert(value: float, from_unit: str, to_unit: str) -> float:

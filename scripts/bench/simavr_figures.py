@@ -13,6 +13,11 @@ summary, its trace of ADS1115 conversion starts and the frames the host received
     and the timestamps within 100 us; the same at the device's shortest sampling period
     (single-shot, 3 ms): IDENTITY's max_rate_steps_per_s must not exceed the
     highest rate with every rate up to it clean there;
+  * continuous sampling at 860 samples/s (one ADS1115 conversion) while moving at the
+    top rate: every stamp against the emulated chip's true conversion start (max and mean
+    |error|), the step position against the A4988's count then, samples lost;
+  * a burst of 300 back-to-back HEARTBEATs during that move: step underruns, samples
+    lost, heartbeats answered, UART bytes lost, the longest main-loop pass (max_pass_us);
   * sample-period jitter: intervals between the ADS1115 conversion starts, idle and at
     each rate;
   * the sampling floor: the device refuses a period 1 us below IDENTITY min_sample_period_us;
@@ -23,7 +28,7 @@ summary, its trace of ADS1115 conversion starts and the frames the host received
   * UART throughput and the SAMPLE stream at the shortest period.
 
 Exits 1 if any run shows a step underrun mid-move (the step train paused), a timestamp
-error above 100 us, an applied heater voltage off by more than 2 % from 2 V up, the
+error above 100 us (single-shot or continuous), a sample lost in the continuous runs, an applied heater voltage off by more than 2 % from 2 V up, the
 heater still on 20 ms after the watchdog, IDENTITY advertising a rate not measured
 clean at the shortest period, or a period below that floor accepted.
 
@@ -46,7 +51,7 @@ from tsa_bench.bench import load_bench
 from tsa_bench.device import BenchClient
 from tsa_bench.motion import TrapezoidProfile
 from tsa_bench.protocol import encode, msg
-from tsa_bench.protocol.blocks import SINGLE_SHOT_MIN_PERIOD_US
+from tsa_bench.protocol.blocks import ADS1115_CONVERSION_US, SINGLE_SHOT_MIN_PERIOD_US
 from tsa_bench.bench.simavr_section import simavr_settings
 from tsa_bench.simavr import SimavrBench
 
@@ -119,12 +124,19 @@ class Session:
 
     def stamp_errors_us(self, samples: list[msg.Sample]) -> list[float]:
         """|SAMPLE.t_us - the nearest ADS1115 conversion start| from the harness trace."""
-        starts = sorted(float(line.split()[1]) for line in (self.bench.trace_text or "").splitlines()
-                        if line.startswith("ads_start"))
+        return [abs(err) for err, _ in self.stamp_and_step_errors(samples)]
+
+    def stamp_and_step_errors(self, samples: list[msg.Sample]) -> list[tuple[float, int]]:
+        """(SAMPLE.t_us - the nearest ADS1115 conversion start, its step position - the
+        A4988's count at that start), from the harness trace."""
+        rows = sorted((float(r[1]), int(r[2])) for r in (line.split() for line in
+                      (self.bench.trace_text or "").splitlines()) if r and r[0] == "ads_start")
+        starts = [t for t, _ in rows]
         out = []
         for s in samples:
             i = bisect.bisect_left(starts, s.t_us)
-            out.append(min(abs(s.t_us - starts[j]) for j in (i - 1, i) if 0 <= j < len(starts)))
+            j = min((k for k in (i - 1, i) if 0 <= k < len(starts)), key=lambda k: abs(starts[k] - s.t_us))
+            out.append((s.t_us - starts[j], s.step_position - rows[j][1]))
         return out
 
 
@@ -171,6 +183,40 @@ def rate_row(r: dict) -> str:
     return (f"{r['rate']:>6.1f} {r['v']:>8d} {r['planned']:>10.4f} {r['actual']:>10.4f} {err:>+8.3f} {r['lost']:>5d} "
             f"{r['underruns']:>5d} {r['steps']:>8d} {r['violations']:>5d} {r['stamp_mean_us']:>7.1f} "
             f"{r['stamp_max_us']:>7.1f}  {'yes' if r['clean'] else 'NO'}")
+
+
+def continuous_run(turns: float, burst: int = 0) -> dict:
+    """860 samples/s while moving there and back at the top rate; with ``burst`` that many
+    HEARTBEATs back to back once the motor is at speed."""
+    steps, v, a = round(turns * SPT), 16_000, 320_000
+    with Session(build=False) as s:
+        s.command(msg.SetSampling(1, ADS1115_CONVERSION_US))
+        s.command(msg.MoveBy(2, steps, v, a))
+        s.command(msg.MoveBy(3, -steps, v, a))
+        answered = max_pass = 0
+        if burst:
+            s.run_until(lambda: sum(x.motor_moving for x in s.samples) > 200)
+            s.port.write(b"".join(encode(msg.Heartbeat(), 1000 + i) for i in range(burst)))
+        deadline = time.monotonic() + 300
+        beat = time.monotonic()
+        while not any(e.kind == msg.EventKind.SEGMENT_DONE and e.segment == 3 for e in s.events):
+            if time.monotonic() > deadline:
+                raise RuntimeError("timed out waiting for the device")
+            got = s.client.poll()
+            statuses = [m for m in got if isinstance(m, msg.QueueStatus)]
+            answered += len(statuses)
+            max_pass = max([max_pass] + [m.max_pass_us for m in statuses])
+            s._keep(got)
+            if time.monotonic() - beat > 0.2:
+                s.client.command(msg.Heartbeat())
+                beat = time.monotonic()
+        qs = s.status()
+    errors = s.stamp_and_step_errors(s.samples)
+    t_err = [abs(e) for e, _ in errors]
+    return {"samples": len(s.samples), "lost": lost(s.samples), "stamp_max_us": max(t_err),
+            "stamp_mean_us": sum(t_err) / len(t_err), "step_max": max(abs(d) for _, d in errors),
+            "underruns": qs.step_underruns, "max_pass_us": max(max_pass, qs.max_pass_us), "answered": answered,
+            "uart_lost": qs.uart_overruns, "summary": s.bench.summary}
 
 
 RATE_HEADER = (f"  {'turn/s':>6} {'steps/s':>8} {'planned s':>10} {'actual s':>10} {'err %':>8} {'lost':>5} "
@@ -221,6 +267,15 @@ def main() -> int:
         if not r["clean"]:
             break
         clean_fast = r["v"]
+
+    cont = continuous_run(args.turns)                   # 860 samples/s at the top rate
+    cont_burst = continuous_run(args.turns, burst=300)  # and a burst of heartbeats meanwhile
+    summaries += [cont["summary"], cont_burst["summary"]]
+    for r, what in ((cont, "continuous"), (cont_burst, "continuous with a 300-HEARTBEAT burst")):
+        if r["stamp_max_us"] > STAMP_LIMIT_US:
+            failures.append(f"{what}: SAMPLE timestamp {r['stamp_max_us']:.0f} us off")
+        if r["lost"] or r["underruns"]:
+            failures.append(f"{what}: {r['lost']} samples lost, {r['underruns']} step underruns")
 
     heater_rows = []
     with Session(build=False) as s:                     # heater: applied vs requested vs reported
@@ -308,6 +363,15 @@ def main() -> int:
         failures.append(f"IDENTITY advertises {ident.max_rate_steps_per_s} steps/s, measured clean {clean_fast}")
     print(f"  idle SAMPLE timestamp error: mean {sum(idle_errors) / len(idle_errors):.1f} us, "
           f"max {max(idle_errors):.1f} us over {len(idle_errors)} samples")
+    print(f"\ncontinuous sampling, one ADS1115 conversion ({ADS1115_CONVERSION_US} us), {args.turns:g} turns there "
+          f"and back at 16,000 steps/s:")
+    for r, what in ((cont, "plain"), (cont_burst, "300 HEARTBEATs back to back meanwhile")):
+        print(f"  {what:<38} {r['samples']:>6} samples, {r['lost']} lost; stamp error vs the true conversion start "
+              f"max {r['stamp_max_us']:.1f} us, mean {r['stamp_mean_us']:.1f} us; step position vs the A4988 at it "
+              f"max {r['step_max']} steps; {r['underruns']} step underruns; longest main-loop pass (QUEUE_STATUS "
+              f"max_pass_us) {r['max_pass_us']} us")
+    print(f"  burst: {cont_burst['answered']} QUEUE_STATUS received (300 HEARTBEATs plus the host's own), "
+          f"{cont_burst['uart_lost']} bytes the firmware's receiver dropped while its frames waited for the samples")
     print("\nsample-period jitter (intervals between ADS1115 conversion starts; deviation from the period):")
     print(f"  {'run':<26} {'count':>6} {'mean ms':>9} {'std us':>8} {'min us':>9} {'max us':>9}")
     for row in jitter:

@@ -90,7 +90,7 @@ def main() -> int:
             client.connect(10.0)
             client.set_position(0)
             client.command(msg.SetSampling(1, ADS1115_CONVERSION_US))
-            n = gaps = words = invalid = 0
+            n = gaps = words = invalid = max_pass = 0
             gap_at: list[tuple[int, float, int]] = []
             first = last = None
             t_start_us = t_words_from_us = None
@@ -117,6 +117,8 @@ def main() -> int:
                         n += 1
                         invalid += bool(m.adc_flags & msg.AdcFlags.POSITION_INVALID)
                         last = m
+                    elif isinstance(m, msg.QueueStatus):
+                        max_pass = max(max_pass, m.max_pass_us)
                     elif isinstance(m, msg.Event) and args.move and m.kind == msg.EventKind.QUEUE_EMPTY:
                         # the queue ran dry (SET_SAMPLING's, then each move's): the next move
                         target = 20 * spt if there else 0
@@ -132,8 +134,8 @@ def main() -> int:
                     client.command(msg.Heartbeat())
                     beat = time.monotonic()
             rx = port.rx_bytes - bytes_from
-            client.command(msg.SetSampling(0xFFFF, 0))
             status = client.status()
+            client.command(msg.SetSampling(0xFFFF, 0))
         finally:
             raw.close()
     summary = bench.summary or {}
@@ -160,6 +162,9 @@ def main() -> int:
           f"conversion's end to its read {adc.get('ads1115_read_latency_max_us')} us (a conversion lasts "
           f"{1e6 / ADS1115_SPS:.0f}); UART RX overruns {summary.get('violations', {}).get('uart_rx_overrun')}; "
           f"step underruns {status.step_underruns}; I2C bus recoveries {status.i2c_recoveries}")
+    print(f"  firmware          longest main-loop pass {max(max_pass, status.max_pass_us):,} us (QUEUE_STATUS "
+          f"max_pass_us); ADS1115 conversion period measured {status.sensor_period_ns / 1000:.3f} us; "
+          f"sensor restarts {status.sensor_restarts}")
     isr = summary.get("isr", {})
     if isr:
         worst = ", ".join(f"{v['name'] if v['name'] != '?' else 'vector ' + k} {v['max_cycles']}"

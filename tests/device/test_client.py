@@ -141,15 +141,15 @@ def test_nak_raises_with_the_status_name():
 
 def test_messages_arriving_with_the_ack_are_kept_in_order():
     port = ScriptedPort({msg.Hello: lambda f: [identity()],
-                         msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16), msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0)]})
+                         msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16), msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)]})
     client = BenchClient(port, ack_timeout_s=0.05)
     client.connect(boot_timeout_s=0.2)
     client.command(msg.Heartbeat())
-    assert client.poll() == [msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0)]
+    assert client.poll() == [msg.QueueStatus(5, 16, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)]
 
 
 def test_status_returns_the_queue_status_answering_a_heartbeat_and_keeps_it_for_poll():
-    qs = msg.QueueStatus(7, 16, 0, 0, 0, int(msg.DeviceState.POSITION_UNKNOWN), 1234, 2, 3, 4, 5)
+    qs = msg.QueueStatus(7, 16, 0, 0, 0, int(msg.DeviceState.POSITION_UNKNOWN), 1234, 2, 3, 4, 5, 0, 0, 0)
     port = ScriptedPort({msg.Hello: lambda f: [identity()],
                          msg.Heartbeat: lambda f: [msg.Ack(f.seq, 0x02, 0, 16), qs]})
     client = BenchClient(port, ack_timeout_s=0.05)

@@ -1,11 +1,13 @@
-"""A fault-injecting serial relay for tests: drop, flip, duplicate, swap, stall, cut.
+"""A fault-injecting serial relay for tests: drop, flip, duplicate, swap, delay, stall, cut.
 
 Faults act on whole frames (split at the 0x00 delimiter), independently in each
 direction, drawn from a seeded random generator:
 
 * ``drop``: the frame vanishes; ``flip``: one byte of it is XOR-ed with a random
   non-zero value (the CRC must catch it); ``duplicate``: it is sent twice in a row;
-  ``swap``: it is held back and sent after the next frame;
+  ``swap``: it is held back and sent after the next frame; ``delay`` and ``boundary``
+  (towards the host): held back past several frames, anywhere or at segment boundaries
+  (:class:`Faults`);
 * ``stalls``: ``[(start_s, duration_s), ...]`` on the relay's clock, during which
   nothing passes either way (bytes are kept and delivered when the stall ends);
 * ``cut_at_s``: from then on the port fails as an unplugged one does.
@@ -34,20 +36,46 @@ from dataclasses import dataclass, field
 import serial
 
 from tsa_bench.protocol import MessageDecoder, msg
+from tsa_bench.protocol.blocks import expand
 
 
 @dataclass(frozen=True)
 class Faults:
-    """Per-frame probabilities (0..1) of each fault in one direction."""
+    """Per-frame probabilities (0..1) of each fault in one direction.
+
+    ``delay``: the frame is held back and sent after the next 2..``max_delay_frames``
+    frames (beyond the link layer's reordering depth it arrives late). ``boundary``: at
+    each EVENT frame of a segment boundary (segment_started, segment_done, queue_empty),
+    either that event is held back past the next 1..``max_delay_frames`` frames (samples of
+    the next segment overtake it) or the frame just before it (the last sample of the
+    segment ending) is held back past it. Only for frames towards the host: a serial line
+    never reorders, and a host command overtaken by its successor would defeat the
+    device's one-deep repeat filter, which the protocol relies on the line not doing.
+    """
 
     drop: float = 0.0
     flip: float = 0.0
     duplicate: float = 0.0
     swap: float = 0.0
+    delay: float = 0.0
+    boundary: float = 0.0
+    max_delay_frames: int = 6
 
 
 #: The link campaign of docs/reliability: 1 % drop, 1 % flip, 2 % duplicate, 2 % swap.
 CAMPAIGN = Faults(drop=0.01, flip=0.01, duplicate=0.02, swap=0.02)
+#: Reordering towards the host: 3 % swapped, 3 % delayed by 2-6 frames, and half of the
+#: segment boundaries with the event or the sample before it moved (no loss on the line).
+REORDER = Faults(swap=0.03, delay=0.03, boundary=0.5)
+
+_BOUNDARY_EVENTS = {int(msg.EventKind.SEGMENT_STARTED), int(msg.EventKind.SEGMENT_DONE),
+                    int(msg.EventKind.QUEUE_EMPTY)}
+
+
+def _is_boundary(frame: bytes) -> bool:
+    """An EVENT frame of a segment boundary (decoded on its own; a damaged frame is not)."""
+    found = MessageDecoder().feed(frame)
+    return bool(found) and isinstance(found[0].message, msg.Event) and found[0].message.kind in _BOUNDARY_EVENTS
 
 
 class FrameMangler:
@@ -57,7 +85,9 @@ class FrameMangler:
         self.faults, self.rng, self.on_frame = faults, rng, on_frame
         self.stats: Counter[str] = Counter()
         self._partial = bytearray()
-        self._held: bytes | None = None
+        self._held: bytes | None = None      # held for a swap
+        self._prev: bytes | None = None      # the last frame, kept back one frame (boundary faults)
+        self._delayed: list[list] = []       # [frames still to pass, frame]
 
     def feed(self, data: bytes) -> bytes:
         out: list[bytes] = []
@@ -70,9 +100,30 @@ class FrameMangler:
         return b"".join(out)
 
     def release_held(self) -> bytes:
-        """The frame held for a swap, when nothing followed it (the line went quiet)."""
-        held, self._held = self._held, None
-        return held or b""
+        """Every frame held back (swap, delay, boundary), in the order they would have
+        gone: the line went quiet, nothing follows them."""
+        out: list[bytes] = []
+        if self._prev is not None:
+            self._emit(self._prev, out)
+            self._prev = None
+        if self._held is not None:
+            self._emit(self._held, out)
+            self._held = None
+        out += [frame for _, frame in self._delayed]
+        self._delayed.clear()
+        return b"".join(out)
+
+    def _emit(self, frame: bytes, out: list[bytes]) -> None:
+        """Send one frame; frames delayed past it whose count has run out follow it."""
+        out.append(frame)
+        for d in self._delayed:
+            d[0] -= 1
+        while self._delayed and self._delayed[0][0] <= 0:
+            out.append(self._delayed.pop(0)[1])
+
+    def _delay(self, frame: bytes, lo: int) -> None:
+        self._delayed.append([self.rng.randint(lo, max(lo, self.faults.max_delay_frames)), frame])
+        self._delayed.sort(key=lambda d: d[0])
 
     def _one(self, frame: bytes, out: list[bytes]) -> None:
         f, rng = self.faults, self.rng
@@ -88,17 +139,40 @@ class FrameMangler:
             b[i] ^= rng.randrange(1, 256)
             frame = bytes(b)
             self.stats["flipped"] += 1
+        if f.boundary:
+            prev, self._prev = self._prev, frame
+            if _is_boundary(frame) and rng.random() < f.boundary:
+                if prev is not None and rng.random() < 0.5:
+                    self.stats["boundary_before"] += 1    # the frame before the event goes after it
+                    self._delay(prev, 1)
+                    prev = None
+                else:
+                    self.stats["boundary_event"] += 1     # the event goes after what follows it
+                    self._prev = None
+                    self._delay(frame, 1)
+            if prev is None:
+                return
+            frame = prev
+        self._pass(frame, out)
+
+    def _pass(self, frame: bytes, out: list[bytes]) -> None:
+        f, rng = self.faults, self.rng
         if self._held is not None:
-            out += [frame, self._held]
-            self._held = None
+            held, self._held = self._held, None
+            self._emit(frame, out)
+            self._emit(held, out)
             self.stats["swapped"] += 1
             return
         if rng.random() < f.swap:
             self._held = frame
             return
-        out.append(frame)
+        if rng.random() < f.delay:
+            self.stats["delayed"] += 1
+            self._delay(frame, 2)
+            return
+        self._emit(frame, out)
         if rng.random() < f.duplicate:
-            out.append(frame)
+            self._emit(frame, out)
             self.stats["duplicated"] += 1
 
 
@@ -113,7 +187,8 @@ class _Recorder:
         self.messages += [f.message for f in self._decoder.feed(frame)]
 
     def samples(self) -> dict[int, msg.Sample]:
-        return {m.counter: m for m in self.messages if isinstance(m, msg.Sample)}
+        """Every sample sent, by counter (SAMPLE_BLOCKs expanded)."""
+        return {m.counter: m for m in expand(self.messages) if isinstance(m, msg.Sample)}
 
     def count(self, kind: type) -> int:
         return sum(isinstance(m, kind) for m in self.messages)
@@ -128,6 +203,10 @@ class LinkFaults:
     stalls: tuple[tuple[float, float], ...] = ()
     cut_at_s: float | None = None
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.to_device.delay or self.to_device.boundary:
+            raise ValueError("delay and boundary faults are for frames towards the host (see Faults)")
 
 
 class _Link:

@@ -4,7 +4,10 @@ same answers, and the host's runner drives a whole plan on the firmware."""
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
+import threading
 
 import h5py
 import numpy as np
@@ -32,11 +35,13 @@ def native_binary(repo_root):
 
 def test_firmware_answers_like_the_simulated_device(native_binary):
     sim_port = serial.serial_for_url("sim://?seed=1", timeout=0)
-    sim_log = every_command_and_refusal(Exchange(sim_port, settle_s=0))
+    sim_ex = Exchange(sim_port, settle_s=0)
+    sim_log = every_command_and_refusal(sim_ex)
     fw_port = NativeFirmwarePort(native_binary, "--speed", "1")
     try:
         fw_port.read(64)  # its BOOT
-        fw_log = every_command_and_refusal(Exchange(fw_port, settle_s=0.08))
+        # as many replies as the simulated device gave at each step, however busy the machine
+        fw_log = every_command_and_refusal(Exchange(fw_port, settle_s=0.05, follows=sim_ex))
     finally:
         fw_port.close()
     assert len(fw_log) == len(sim_log)
@@ -45,6 +50,38 @@ def test_firmware_answers_like_the_simulated_device(native_binary):
     # the scenario really exercised the refusals
     statuses = {r[2] for step in sim_log for r in step if r[0] == "ACK"}
     assert {"OK", "QUEUE_FULL", "BAD_ARGUMENT", "LIMIT_EXCEEDED", "UNKNOWN_MESSAGE", "BAD_LENGTH"} <= statuses
+
+
+class _SlowFirmware:
+    """The native firmware's port, the firmware frozen (SIGSTOP) for ``stall_s`` after every
+    write: a machine so busy that no reply comes within a fixed window of wall time."""
+
+    def __init__(self, port: NativeFirmwarePort, stall_s: float) -> None:
+        self.port, self.stall_s = port, stall_s
+
+    def __getattr__(self, name):
+        return getattr(self.port, name)
+
+    def write(self, data: bytes) -> int:
+        os.kill(self.port.proc.pid, signal.SIGSTOP)
+        threading.Timer(self.stall_s, os.kill, (self.port.proc.pid, signal.SIGCONT)).start()
+        return self.port.write(data)
+
+
+def test_firmware_answers_alike_when_the_machine_is_busy(native_binary):
+    """Issue 35, defect 6: every reply 0.15 s late (the firmware frozen after each frame):
+    the exchange waits for as many replies as the simulated device gave, not for a quiet
+    window, so the logs still agree (a fixed 80 ms window read the replies one step late)."""
+    sim_ex = Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0)
+    sim_log = every_command_and_refusal(sim_ex)
+    fw_port = NativeFirmwarePort(native_binary, "--speed", "1")
+    try:
+        fw_port.read(64)  # its BOOT
+        fw_log = every_command_and_refusal(Exchange(_SlowFirmware(fw_port, 0.15), settle_s=0.05, follows=sim_ex))
+    finally:
+        os.kill(fw_port.proc.pid, signal.SIGCONT)
+        fw_port.close()
+    assert fw_log == sim_log
 
 
 def test_runner_drives_a_plan_on_the_firmware_core(native_binary, tmp_path):
@@ -91,11 +128,12 @@ def test_firmware_core_agrees_on_the_new_behaviours(native_binary, scenario):
     from tests import conformance_scenarios as sc
 
     run = getattr(sc, scenario)
-    sim = run(Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0))
+    sim_ex = Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0)
+    sim = run(sim_ex)
     fw_port = NativeFirmwarePort(native_binary, "--virtual")
     try:
         fw_port.read(64)  # its BOOT
-        fw = run(Exchange(fw_port, settle_s=0.05, first_reply_s=1.0))
+        fw = run(Exchange(fw_port, settle_s=0.05, follows=sim_ex))
     finally:
         fw_port.close()
     assert fw["log"] == sim["log"]
@@ -116,11 +154,12 @@ def test_firmware_core_samples_continuously_like_the_simulated_device(native_bin
     frames without a counter gap, with resistance words at the CS5513's rate."""
     from tests import conformance_scenarios as sc
 
-    sim = sc.continuous_sampling(Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0))
+    sim_ex = Exchange(serial.serial_for_url("sim://?seed=1", timeout=0), settle_s=0)
+    sim = sc.continuous_sampling(sim_ex)
     fw_port = NativeFirmwarePort(native_binary, "--virtual", "--cs5513-us", "19125")
     try:
         fw_port.read(64)  # its BOOT
-        fw = sc.continuous_sampling(Exchange(fw_port, settle_s=0.05, first_reply_s=1.0))
+        fw = sc.continuous_sampling(Exchange(fw_port, settle_s=0.05, follows=sim_ex))
     finally:
         fw_port.close()
     assert fw["log"] == sim["log"]

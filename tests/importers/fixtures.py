@@ -78,3 +78,17 @@ def write_tdms(path: Path, waveform: bool = False) -> Path:
     with TdmsWriter(path) as w:
         w.write_segment([RootObject({"operator": "lab"}), GroupObject("Measured"), *chans])
     return path
+
+
+def run_import(tmp_path: Path, text: str | None, *args: str, name: str = "lab.csv", out: str = "run.h5"):
+    """`tsa-bench import` of ``text`` written to ``tmp_path/name`` (None: the file is already there);
+    returns (click result, output path)."""
+    from click.testing import CliRunner
+
+    from tsa_bench.cli import main
+
+    src = tmp_path / name
+    if text is not None:
+        src.write_text(text, encoding="utf-8")
+    res = CliRunner().invoke(main, ["import", str(src), "--out", str(tmp_path / out), *args])
+    return res, tmp_path / out

@@ -59,3 +59,17 @@ def test_sample_rate_and_jitter_are_printed_and_stored(tmp_path):
     rate = json.loads(read_run(tmp_path / "j.h5").attrs["metadata"])["sample_rate"]
     assert abs(rate["rate_hz"] - 100) < 2 and 0.0001 < rate["jitter_rms_s"] < 0.0005
     assert f"{rate['rate_hz']:.6g} Hz" in line and "jitter" in line
+
+
+def test_sort_stores_the_sorted_clock_when_no_row_repeats(tmp_path):
+    """Issue 29, item 7b: the clock steps back by 0.25 s for three rows; no time repeats, so no row is dropped,
+    and the stored t (and every column with it) must still come out in time order."""
+    t = [round(0.1 * k, 2) for k in range(495, 501)] + [49.75, 49.85, 49.95] + [round(0.1 * k, 2) for k in range(501, 506)]
+    src = tmp_path / "step_back.csv"
+    src.write_text("t [s],length [mm]\n" + "".join(f"{v},{100 + v}\n" for v in t))
+    res = CliRunner().invoke(main, ["import", str(src), "--time-order", "sort", "--out", str(tmp_path / "s.h5")])
+    assert res.exit_code == 0, res.output
+    assert "sorted by time: " in res.output and "0 rows repeating an earlier time dropped" in res.output
+    s = read_run(tmp_path / "s.h5").samples
+    assert len(s["t"]) == len(t) and bool(np.all(np.diff(s["t"]) > 0))
+    assert np.allclose(s["t"], sorted(t)) and np.allclose(s["length"], 100 + s["t"])

@@ -88,3 +88,32 @@ def test_a_missing_optional_reader_names_its_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "nptdms", None)  # as if npTDMS were not installed
     r = CliRunner().invoke(main, ["import", str(t), "--out", str(tmp_path / "x.h5")])
     assert r.exit_code == 2 and "needs the optional extra 'tdms'" in r.output and "tsa-bench[tdms]" in r.output
+
+
+def test_matlab_vectors_of_different_lengths_are_chosen_by_map(tmp_path):
+    """Issue 29, item 6: a workspace of vectors of several lengths; the ones --map names must agree."""
+    import scipy.io
+
+    n = 50
+    src = tmp_path / "ws.mat"
+    scipy.io.savemat(src, {"time": np.arange(n) * 0.1, "defl": np.linspace(0, 2, n), "volt": np.linspace(0, 5, n),
+                           "calib": np.arange(7.0), "other_t": np.arange(12.0)})
+    res = CliRunner().invoke(main, ["import", str(src), "--map", "t=time,length=defl,heater_voltage=volt",
+                                    "--units", "t=s,length=mm,heater_voltage=V", "--out", str(tmp_path / "w.h5")])
+    assert res.exit_code == 0, res.output
+    assert "vectors of another length left out: calib (7), other_t (12)" in res.output
+    s = read_run(tmp_path / "w.h5").samples
+    assert len(s["t"]) == n and np.allclose(s["length"][-1], 2.0)
+    bad = CliRunner().invoke(main, ["import", str(src), "--map", "t=time,length=calib", "--units", "t=s,length=mm",
+                                    "--out", str(tmp_path / "x.h5")])
+    assert bad.exit_code == 2 and not (tmp_path / "x.h5").exists()
+    assert "the vectors --map names are of different lengths (time 50, calib 7)" in bad.output
+
+
+def test_matlab_source_code_is_named_with_the_hint_to_save_a_mat_file(tmp_path):
+    src = tmp_path / "DataT.m"
+    src.write_text("% measured data\nfunction d = DataT()\n  d = [0 1; 0.1 2];\nend\n")
+    res = CliRunner().invoke(main, ["import", str(src), "--out", str(tmp_path / "d.h5")])
+    assert res.exit_code == 2 and not (tmp_path / "d.h5").exists()
+    assert "looks like MATLAB source code (a script or function), not data" in res.output
+    assert "save the workspace as a .mat file" in res.output and "cells, the header has" not in res.output

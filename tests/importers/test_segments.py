@@ -38,7 +38,9 @@ def test_fit_on_inferred_segments_matches_the_recorded_run(sweep, tmp_path):
     run, stripped, _ = sweep
     res = CliRunner().invoke(main, ["import", str(stripped), "--out", str(tmp_path / "imp.h5")])
     assert res.exit_code == 0, res.output
-    assert "segments inferred: " in res.output and "thresholds: turns 0 turn, heater 0.05 V, load 0.05 N" in res.output
+    assert "segments inferred: " in res.output
+    assert ("thresholds: turns 0 turn (hysteresis 0), heater 0.05 V (hysteresis 0.01), load 0.05 N (hysteresis 0.01), "
+            "minimum duration 0.25 s") in res.output
     imp = read_run(tmp_path / "imp.h5")
     kinds = set(imp.segments["kind"].astype(str))
     assert {"move", "hold"} <= kinds and len(imp.segments) > 50 and (imp.samples["segment"] >= 0).all()

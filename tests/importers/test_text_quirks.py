@@ -73,10 +73,10 @@ def test_partial_map_keeps_the_automatic_pick_up(tmp_path):
     assert np.allclose(s["t"], [0, 0.1]) and np.allclose(s["length"], [10, 15]) and np.allclose(s["load"], 2.0)
     assert np.allclose(s["temperature"], [26.85, 27.85])
     lines = res.output.splitlines()
-    assert "  column 'time_ms' -> t (contract column, picked up) [ms -> s]" in lines
-    assert "  column 'lvdt' -> length (contract column, mapped) [cm -> mm]" in lines
+    assert "  column 'time_ms' -> t (contract column, picked up) [ms -> s, x0.001]" in lines
+    assert "  column 'lvdt' -> length (contract column, mapped) [cm -> mm, x10]" in lines
     assert "  column 'load [N]' -> load (contract column, picked up) [N]" in lines
-    assert "  column 'temp [K]' -> temperature (extra column, picked up) [K -> degC]" in lines
+    assert "  column 'temp [K]' -> temperature (extra column, picked up) [K -> degC, x1 -273.15]" in lines
     assert any(ln.startswith("  column 'comment' left out: ") for ln in lines)
     meta = json.loads(run.attrs["metadata"])
     assert meta["column_map"]["length"] == "lvdt" and meta["source_units"]["t"] == "ms"

@@ -93,7 +93,7 @@ BAD = [
      ["rig.csv:1: column 'time' (t) has no unit", "--units t=UNIT (s, ms, us, min, h)",
       "column 'len' (length) has no unit", "'len [mm]'"]),
     ("time_s,len\n0,1\n", {"t": "time_s", "length": "len"}, {"len": "furlong"},
-     ["rig.csv:1", "column 'len' (length)", "unit 'furlong' is not known", "mm, um, cm, m, in"]),
+     ["rig.csv:1", "column 'len' (length)", "unit 'furlong' is not known", "mm, m, cm, um, nm, in"]),
     ("time_s,len\n0,1\n", {"t": "time_s", "length": "len"}, {"width": "mm"}, ["--units: 'width'"]),
     ("# only a comment\n", None, {}, ["rig.csv", "no header line"]),
     ("t [s],len\n", None, {}, ["rig.csv", "no data rows"]),

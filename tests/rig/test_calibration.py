@@ -116,3 +116,47 @@ def test_ports_recognise_megas_and_their_clones():
         1, "CH340 USB-serial (common on Mega clones)")
     assert likely_board(PortInfo("COM7", "Arduino Mega 2560 (COM7)"))[0] == 2
     assert likely_board(PortInfo("/dev/ttyS0", "n/a"))[0] == 0
+
+
+def test_a_slow_person_reading_the_ruler_trips_no_watchdog():
+    """Issue 35: the device samples only while a point is measured, so a person taking
+    three watchdog periods to read the ruler finds the rig as they left it (sampling on
+    during the question tripped the watchdog: the next move was refused)."""
+    from tsa_bench.rig.calibration import acquire
+    from tsa_bench.rig.link import open_link
+
+    bench = load_bench(ROOT / "configs" / "bench" / "sim.yaml")
+    readings = iter(["300", "290", "280"])
+    with open_link("sim://?seed=2", bench) as link:
+        link.set_position(0)
+        port = link.client.port
+        device = port.device
+
+        def slow_person(question: str) -> str:
+            end = device.now_s + 3 * device.limits.watchdog_s
+            while device.now_s < end:   # the rig's time runs on (sim:// advances on reads); the host is silent
+                port.read(4096)
+            return next(readings)
+
+        counts, refs, _ = acquire(link, "position", slow_person, at_turns=[0, 5, 10], seconds=0.3, say=lambda _: None)
+        assert device.fault == 0
+    assert refs == [300.0, 290.0, 280.0] and len(set(counts)) == 3
+
+
+def test_a_probe_that_stalls_is_one_line_not_a_traceback(monkeypatch):
+    """`ports --probe`: a device that answers the handshake and then falls silent (no ACK)
+    is reported on its line; the next port is still probed (issue 35, defect 4)."""
+    from contextlib import contextmanager
+
+    import tsa_bench.rig.link as link_module
+    from tsa_bench.device import NoAcknowledgement
+    from tsa_bench.rig.ports import probe
+
+    @contextmanager
+    def stalls(port, bench, boot_timeout_s=None):
+        raise NoAcknowledgement("no ACK for HEARTBEAT after 10 transmissions over 2.55 s")
+        yield
+
+    monkeypatch.setattr(link_module, "open_link", stalls)
+    result = probe("/dev/ttyACM9", load_bench(MEGA))
+    assert not result.ok and "no ACK for HEARTBEAT" in result.text

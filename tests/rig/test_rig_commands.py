@@ -71,7 +71,9 @@ def test_check(rig):
     res = _cli("check", "--port", port, "--bench", str(bench), "--seconds", "1", "--live")
     assert res.exit_code == 0, res.output
     assert f"SIMULATED tsa-bench firmware {_firmware_version(kind)}" in res.output and "(matches this host)" in res.output
-    assert "fault none" in res.output and "check: ok" in res.output
+    # a device fresh from power-up does not know its position: a finding, not "ok" (issue 35, defect 5)
+    assert "fault none, twist unknown" in res.output and "check: ok" not in res.output
+    assert "check: position unknown" in res.output and "does not know the motor's position" in res.output
     cal = load_bench(bench)
     lines = [ln for ln in res.output.splitlines() if ln.startswith("sample ")]
     assert len(lines) >= 10

@@ -68,3 +68,35 @@ def test_a_kept_position_is_used_and_recorded_without_asking(tmp_path):
     detail = _events(run, "position_kept")[0]["detail"]
     assert "3200 steps" in (detail.decode() if isinstance(detail, bytes) else detail)
     assert device.executor.position_steps == 0      # the plan's move_to 0 is absolute
+
+
+def test_a_fault_latched_before_the_run_is_told_and_cleared_at_its_start(tmp_path):
+    """Issue 35, defect 3: a fault left by an earlier program (the watchdog after Ctrl-C)
+    no longer fails the run: the operator is told what it is and what clears it, then
+    CLEAR_QUEUE, and the run goes on (recorded as an event)."""
+    from tsa_bench.protocol import msg
+
+    said: list[str] = []
+    operator = AutoOperator(say=said.append)
+    stop, run, device = _run(tmp_path, operator, prepare=lambda dev: dev.inject_fault(msg.Fault.WATCHDOG))
+    assert stop.exit_status == "success", stop.reason
+    assert len(said) == 1 and "device fault watchdog latched" in said[0] and "Clearing it now" in said[0]
+    assert len(_events(run, "fault_at_start")) == 1 and len(_events(run, "fault_cleared")) == 1 and device.fault == 0
+
+
+def test_a_fault_that_stays_ends_the_run_before_anything_moves(tmp_path):
+    from tsa_bench.protocol import msg
+
+    def stuck(dev):
+        dev.inject_fault(msg.Fault.POSITION_SENSOR)
+        clear = dev._apply
+
+        def keep_fault(message):   # the cause is still there: CLEAR_QUEUE cannot clear it
+            clear(message)
+            if type(message) is msg.ClearQueue:
+                dev.fault = int(msg.Fault.POSITION_SENSOR)
+        dev._apply = keep_fault
+
+    stop, run, device = _run(tmp_path, AutoOperator(), prepare=stuck)
+    assert stop.exit_status == "failed" and "keeps fault position_sensor latched" in stop.reason
+    assert "I2C" in stop.reason and stop.segments_done == 0 and device.executor.position_steps == 0

@@ -167,13 +167,16 @@ def test_a_failing_consumer_stops_the_device_and_the_file_still_closes(tmp_path)
 
 
 def test_segment_indices_unwrap_past_the_16_bit_wire_field():
-    """Plan indices travel modulo 65535 (0xFFFF = no segment); the host restores them
-    from the window of segments in flight, including across the wrap."""
-    from tsa_bench.runner.engine import NO_SEGMENT, WIRE_SEGMENTS, Runner
+    """Plan indices travel modulo 65535 (0xFFFF = no segment); the host restores them as
+    the plan index nearest the oldest segment not done, across the wrap, ahead (queued)
+    and behind (a late sample or event of a segment already done: never + 65535)."""
+    from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, plan_segment
 
-    runner = Runner.__new__(Runner)
-    for oldest in (0, 5, 65_530, 65_534, 65_535, 131_060, 200_000):
-        runner._oldest = oldest
-        for idx in range(oldest, oldest + 16):
-            assert runner._unwrap(idx % WIRE_SEGMENTS) == idx
-    assert runner._unwrap(NO_SEGMENT) == -1
+    n = 300_000
+    for oldest in (0, 1, 5, 65_530, 65_534, 65_535, 65_536, 131_060, 200_000):
+        for idx in range(max(0, oldest - 16), oldest + 16):
+            assert plan_segment(idx % WIRE_SEGMENTS, oldest, n) == idx, (idx, oldest)
+    assert plan_segment(NO_SEGMENT, 7, n) == -1
+    assert plan_segment(21, 22, 22) == 21          # samples after the last segment of a 22-segment plan
+    assert plan_segment(0, 1, 65_540) == 0         # QUEUE_EMPTY of segment 0 once segment 1 is the oldest
+    assert plan_segment(30, 0, 22) == -1           # no segment of the plan

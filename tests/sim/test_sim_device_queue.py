@@ -32,7 +32,9 @@ MAX_RATE, MAX_ACCEL = 5 * SPT, 100 * SPT
     (msg.MoveBy(0, -10 * SPT, MAX_RATE, MAX_ACCEL), S.OK),
     (msg.SetHeater(0, 12000), S.OK),
     (msg.SetSampling(0, 1163), S.OK),                             # continuous, 860 samples/s
-    (msg.SetSampling(0, 2999), S.OK),
+    (msg.SetSampling(0, 2326), S.OK),                             # continuous, every other conversion
+    (msg.SetSampling(0, 1500), S.BETWEEN_CONVERSIONS),             # never rounded to a conversion
+    (msg.SetSampling(0, 2999), S.BETWEEN_CONVERSIONS),
     (msg.SetSampling(0, 3000), S.OK),
     (msg.SetSampling(0, 0), S.OK),
     (msg.Dwell(0, 0), S.OK),

@@ -64,7 +64,7 @@ def test_position_unknown_until_set(device):
 
 def test_every_command_is_acked_and_heartbeat_gets_queue_status(host):
     reply = host.send(msg.Heartbeat(), seq=41)
-    assert reply == [msg.Ack(41, 0x02, S.OK, 16), msg.QueueStatus(0, 16, 0, 0xFFFF, 0, 0, 0, 0, 0, 0, 0)]
+    assert reply == [msg.Ack(41, 0x02, S.OK, 16), msg.QueueStatus(0, 16, 0, 0xFFFF, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)]
     for m in (msg.Stop(), msg.ClearQueue(), msg.SimSetLoad(500_000), msg.Dwell(0, 0), msg.SetHeater(1, 0),
               msg.SetSampling(2, 0), msg.MoveTo(3, 0, 100, 100), msg.MoveBy(4, 0, 100, 100), msg.SetPosition(0)):
         reply = host.send(m, seq=100)
@@ -160,3 +160,19 @@ def test_set_load_g_is_the_operator_shortcut(bench):
     d = SimDevice(bench, seed=0)
     d.set_load_g(123.0)
     assert d.plant.load_g == 123.0
+
+
+def test_arm_reset_only_at_rest_and_the_sensor_period_while_continuous(host):
+    """ARM_RESET as the firmware judges it (the simulated device never resets); QUEUE_STATUS
+    carries the ADS1115's conversion period while sampling continuously, 0 otherwise."""
+    assert host.ack(msg.ArmReset()).status == S.OK                       # at rest, the position declared
+    host.dev.position_known = False                                      # as after a power-on
+    assert host.ack(msg.ArmReset()).status == S.BAD_STATE
+    assert host.ack(msg.SetPosition(0)).status == S.OK
+    assert host.ack(msg.MoveBy(1, SPT, 1000, 10000)).status == S.OK
+    assert host.ack(msg.ArmReset()).status == S.BAD_STATE                # a move runs
+    assert host.send(msg.Heartbeat())[1].sensor_period_ns == 0
+    assert host.ack(msg.SetSampling(2, 1163)).status == S.OK
+    host.run_until(lambda m: isinstance(m, msg.Event) and m.kind == msg.EventKind.QUEUE_EMPTY)
+    status = [m for m in host.send(msg.Heartbeat()) if isinstance(m, msg.QueueStatus)][0]
+    assert status.sensor_period_ns == 1_162_791 and status.max_pass_us == 0 and status.sensor_restarts == 0

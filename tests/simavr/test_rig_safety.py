@@ -42,8 +42,9 @@ def wait_boot(ex: sc.Exchange, since: int, timeout_s: float = 30.0, heartbeat: b
 
 def test_position_kept_across_a_dtr_reset_and_unknown_after_one_mid_move(firmware_dir):
     """A pull-down on /ENABLE keeps the A4988 energized through the reset and the ~1 s
-    bootloader: the position survives in .noinit and the host is told so. A reset while
-    the motor turns leaves it unknown, and moves are refused until SET_POSITION.
+    bootloader: the position survives in .noinit, when the host armed the reset
+    (ARM_RESET before it reopens the port), and the host is told so. A reset while the
+    motor turns leaves it unknown, and moves are refused until SET_POSITION.
     (Before: every reset set the position to a silent 0.)"""
     with simavr_port(firmware_dir) as (port, bench):
         assert bench.boot_message.reason == msg.BootReason.POWER_ON   # the bootloader cleared PORF
@@ -52,6 +53,7 @@ def test_position_kept_across_a_dtr_reset_and_unknown_after_one_mid_move(firmwar
         start = len(ex.received)
         ex.send(msg.MoveTo(1, 6400, 16_000, 320_000))
         ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY, 30, since=start)
+        assert ("ACK", 0x07, "OK", 16) in ex.send(msg.ArmReset())
         since = len(ex.received)
         bench.reset()                                              # the host reopens the port
         boot = wait_boot(ex, since)
@@ -242,3 +244,33 @@ int main(void) {{
         widths[twbr] = bench.summary["steps"]["min_high_cycles"]
     for twbr, cycles in widths.items():
         assert abs(cycles - 9 * (16 + 2 * twbr)) <= 12, widths     # + a few instructions
+
+
+def test_an_unarmed_reset_and_a_hidden_brown_out_leave_the_position_unknown(firmware_dir):
+    """A brown-out: SRAM keeps the record, the stock bootloader clears BORF (the record
+    alone would read external_reset), and the A4988's translator restarts at Home, moving
+    the rotor. The host never armed that reset: the position is unknown. So is it after a
+    DTR reset the host did not arm (a second tool opening the port). (Before: the record
+    said external_reset, /ENABLE read low, and the stale count was kept.)"""
+    with simavr_port(firmware_dir) as (port, bench):
+        ex = exchange(port)
+        sc.handshake(ex)
+        start = len(ex.received)
+        ex.send(msg.MoveTo(1, 6_420, 16_000, 320_000))             # 20 microsteps past a Home position
+        ex.wait_for(lambda m: isinstance(m, msg.Event) and m.kind == E.QUEUE_EMPTY, 30, since=start)
+        since = len(ex.received)
+        bench.brown_out()
+        assert wait_boot(ex, since).reason == msg.BootReason.EXTERNAL_RESET   # BORF hidden by the bootloader
+        ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH))
+        qs = ex.send_for(msg.Heartbeat(), msg.QueueStatus)
+        assert qs.state & STATE.POSITION_UNKNOWN
+        ex.send(msg.SetPosition(0))
+        since = len(ex.received)
+        bench.reset()                                              # a DTR reset nobody armed
+        wait_boot(ex, since)
+        ex.send(msg.Hello(msg.PROTOCOL_VERSION, msg.CATALOGUE_HASH))
+        qs = ex.send_for(msg.Heartbeat(), msg.QueueStatus)
+        assert qs.state & STATE.POSITION_UNKNOWN
+    s = bench.summary
+    assert [r["cause"] for r in s["reset_log"]] == ["power_on", "brown_out", "external"]
+    assert s["steps"]["home_shift"] == -20                         # the count would have been 20 steps off

@@ -49,8 +49,8 @@ def test_extra_channels_are_stored_with_their_units(tmp_path, rig_csv):
 @pytest.mark.parametrize("mapping,units,parts", [
     ({"t": "time_s", "temperature": "T_K"}, {"temperature": "N"},
      ["rigc.csv:2", "unit 'N' is not known for temperature", "degC, C, °C, K, degF"]),
-    ({"t": "time_s", "force": "F_N"}, {"force": "psi"}, ["unit 'psi' is not known for force", "N, mN, kN, lbf"]),
-    ({"t": "time_s", "length": "len_mm"}, {"length": "furlong"}, ["unit 'furlong' is not known for length", "mm, um"]),
+    ({"t": "time_s", "force": "F_N"}, {"force": "psi"}, ["unit 'psi' is not known for force", "N, MN, kN, mN, uN, lbf"]),
+    ({"t": "time_s", "length": "len_mm"}, {"length": "furlong"}, ["unit 'furlong' is not known for length", "mm, m, cm, um"]),
     ({"t": "time_s", "humidity": "humidity"}, {}, ["extra column humidity has no unit", "--units humidity=UNIT"]),
     ({"t": "time_s", "temprature": "T_K"}, {}, ["unknown target 'temprature'", "did you mean 'temperature'"]),
 ])

@@ -149,7 +149,14 @@ class Context:
             out[o] = residual_structure(res, self.noise[o], self.rate, bases, self.moving)
             if comp is not None:
                 out[o]["hold_offsets_removed"] = comp.tau
+            out[o]["undriven"] = self.undriven
         return out
+
+    @property
+    def undriven(self) -> bool:
+        """True when neither twist nor heater changes in any run: nothing the model knows drives the actuator."""
+        return all(np.ptp(r.turns[r.scored]) == 0 if r.scored.any() else True for r in self.inputs) and \
+            all(np.ptp(np.nan_to_num(r.volts)) == 0 for r in self.inputs)
 
 
 def run_scale(ctx: Context, cfg: Mapping[str, Any]) -> RunScale:

@@ -108,9 +108,13 @@ def missing_inputs(runs: list[RunInputs], outputs: tuple[str, ...]) -> list[tupl
         elif np.ptp(r.turns[r.scored]) == 0 and np.ptp(r.volts) == 0 and np.ptp(r.load_g) == 0:
             out.append((f"{name}: no input changes (twist, heater and load are constant); nothing excites the model",
                         "diagnose a run that moves the motor, heats or changes the load"))
-    for o in outputs:
-        if not any(np.isfinite(r.output(o)).sum() >= 20 for r in runs):
-            other = [p for p in OUTPUTS if p != o]
-            out.append((f"{o} is not measured (all NaN) in every run; the judged model's {o} cannot be compared",
-                        f"judge the other output alone: --outputs {','.join(other)}"))
+    unmeasured = [o for o in outputs if not any(np.isfinite(r.output(o)).sum() >= 20 for r in runs)]
+    if len(unmeasured) > 1:   # no other output to judge alone: one reason, one remedy
+        out.append((f"{' and '.join(unmeasured)} are not measured (all NaN) in every run; nothing to compare the "
+                    "model with", "record or import a measured length or resistance (tsa-bench import --map "
+                    "length=COLUMN)"))
+    for o in unmeasured if len(unmeasured) == 1 else []:
+        other = [p for p in OUTPUTS if p != o]
+        out.append((f"{o} is not measured (all NaN) in every run; the judged model's {o} cannot be compared",
+                    f"judge the other output alone: --outputs {','.join(other)}"))
     return out

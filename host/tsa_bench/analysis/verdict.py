@@ -55,8 +55,13 @@ def percent(x: float) -> str:
 
 
 def follows_text(out: str, test: dict) -> str:
-    parts = [f"{DESCRIBE.get(f['signal'], f['signal'])} ({100 * f['share']:.0f} % of its structure)"
-             for f in test.get("follows", [])[:3]]
+    def said(signal: str) -> str:
+        if signal == "length" and test.get("undriven"):   # no scale error to blame: nothing drives the model
+            return ("the measured length (no input of the model drives the actuator on these runs: the motion "
+                    "itself is unexplained)")
+        return DESCRIBE.get(signal, signal)
+
+    parts = [f"{said(f['signal'])} ({100 * f['share']:.0f} % of its structure)" for f in test.get("follows", [])[:3]]
     if parts:
         return f"{out} residual follows " + ", ".join(parts)
     if test.get("jumps", 0) >= 3:

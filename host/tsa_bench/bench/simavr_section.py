@@ -36,6 +36,7 @@ class SimavrSettings:
     backdrive_steps_per_s: float = 16000.0
     ads_rate_error: float = 0.0
     twi_faults: tuple[str, ...] = ()
+    rdy_cuts: tuple[str, ...] = ()        # the ALERT/RDY wire cut between T0[:T1] s (firmware/sim/ads1115.c)
     hang_at_s: float | None = None
     hang_masked: bool = False             # the injected hang runs with interrupts masked
     trace: bool = False
@@ -63,6 +64,16 @@ _CHOICES = {"bootloader": ("stock", "2011", "none"), "enable_pull": ("down", "up
 PROJECT_FIRMWARE_DIR = Path(__file__).resolve().parents[3] / "firmware"
 
 
+#: When this installation carries no firmware (a wheel: only the host program and configs/).
+NO_FIRMWARE = (
+    "{where}: this tsa-bench was installed without the firmware (a wheel carries only the host program): the "
+    "simavr bench builds and runs the firmware from the source checkout, and so does flashing a Mega "
+    "(`make -C firmware flash`). Get the checkout (git clone of the tsa-bench repository; its firmware/ "
+    "folder), install it with `pip install -e .` there, and run from it. Without it you can still use the "
+    "simulated bench (--bench sim.yaml, the default), a Mega flashed from a checkout (--port), and every "
+    "analysis command")
+
+
 def simavr_settings(bench: BenchConfig, *, trust_firmware_dir: bool = False) -> SimavrSettings:
     """The bench file's ``simavr:`` section; raise BenchConfigError naming file and key.
 
@@ -84,6 +95,8 @@ def simavr_settings(bench: BenchConfig, *, trust_firmware_dir: bool = False) -> 
         firmware_dir = (base / fw).resolve()
     else:
         raise BenchConfigError(f"{where}: 'firmware_dir' must be a path, got {fw!r}")
+    if not (firmware_dir / "Makefile").is_file() and not (PROJECT_FIRMWARE_DIR / "Makefile").is_file():
+        raise BenchConfigError(NO_FIRMWARE.format(where=where))
     if firmware_dir != PROJECT_FIRMWARE_DIR.resolve() and not trust_firmware_dir:
         raise BenchConfigError(
             f"{where}: 'firmware_dir' {firmware_dir} is not this project's firmware folder "

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import click
 
-from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail
+from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_FAILED, fail
 from tsa_bench.cli.loading import ALLOW_URL
 
 
@@ -47,10 +47,44 @@ def _pairs(text: str, unit: str) -> tuple[list[float], list[float]]:
 
 
 def _ask(prompt: str) -> str:
+    """A typed reading through the operator channel ("" = Enter alone, also at the end of the input)."""
+    from tsa_bench.operator import OperatorAbsent
+    from tsa_bench.operator.terminal import TerminalOperator
+
     try:
-        return input(prompt)
-    except EOFError:
+        return TerminalOperator().ask(prompt)
+    except OperatorAbsent:
         return ""
+
+
+def _target(bench, quantity: str, out: str | None) -> Path:
+    """The new bench file: --out, or BENCH-<quantity>-<date>.yaml here."""
+    source = Path(bench.path or "bench.yaml")
+    return Path(out) if out else Path(f"{source.stem}-{quantity}-{dt.date.today():%Y%m%d}.yaml")
+
+
+def _keep_points(quantity: str, bench, kept: list[tuple[float, float]], out: str | None, why: str) -> None:
+    """After a failure mid-acquisition: the points measured so far, saved beside the bench file
+    that would have been written and printed as a command that re-fits them without the rig."""
+    from tsa_bench.rig.calibration import points_text
+
+    if not kept:
+        click.echo(f"{why}; no point was complete, nothing was written", err=True)
+        return
+    command = (f"tsa-bench calibrate {quantity} --bench {bench.path} --points {points_text(kept)}"
+               + (f" --out {out}" if out else ""))
+    target = _target(bench, quantity, out)   # beside the bench file it would have written
+    saved, n = target.with_name(f"{target.stem}-points.txt"), 1
+    while saved.exists():
+        n += 1
+        saved = target.with_name(f"{target.stem}-points-{n}.txt")
+    try:
+        saved.write_text(f"# {len(kept)} point(s) measured before: {why}\n{command}\n", encoding="utf-8")
+        where = f"saved in {saved}"
+    except OSError as exc:
+        where = f"not saved ({exc.strerror or exc})"
+    click.echo(f"{why}; the {len(kept)} point(s) measured so far are kept ({where}). Re-fit them without "
+               f"the rig (add points by hand as COUNTS=VALUE):\n  {command}", err=True)
 
 
 def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, note, allow_url) -> None:
@@ -58,6 +92,7 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
     from tsa_bench.cli.loading import load_bench_or_exit
     from tsa_bench.rig.benchfile import BenchWriteError, write_new_bench
     from tsa_bench.rig.calibration import CalibrationError, acquire, device_text, fit_for
+    from tsa_bench.device import DeviceError
     from tsa_bench.rig.link import RigError
 
     unit = "mm" if quantity == "position" else "ohm"
@@ -76,6 +111,7 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
             if (lim.max_twist_turns is not None and t > lim.max_twist_turns) or \
                     (lim.min_twist_turns is not None and t < lim.min_twist_turns):
                 fail(f"--at-turns: {t:g} turns is outside the bench's twist limits")
+        kept: list[tuple[float, float]] = []
         try:
             with _open_or_exit(url, bench) as link:
                 device = device_text(link)
@@ -83,14 +119,17 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
                     zeroed = link.require_position()
                     if zeroed:
                         click.echo(zeroed)
-                counts, refs, error = acquire(link, quantity, _ask, at_turns=turns, seconds=seconds,
-                                              say=click.echo)
+                try:
+                    counts, refs, error = acquire(link, quantity, _ask, at_turns=turns, seconds=seconds,
+                                                  say=click.echo, kept=kept)
+                except (RigError, DeviceError) as exc:
+                    _keep_points(quantity, bench, kept, out, f"error: {exc}")
+                    sys.exit(EXIT_FAILED)
         except CalibrationError as exc:
-            fail(str(exc))
-        except RigError as exc:
-            fail(str(exc), EXIT_FAILED)
+            _keep_points(quantity, bench, kept, out, f"error: {exc}")
+            sys.exit(EXIT_BAD_INPUT)
         except KeyboardInterrupt:
-            click.echo("aborted; nothing was written", err=True)
+            _keep_points(quantity, bench, kept, out, "aborted (Ctrl-C); no bench file was written")
             sys.exit(EXIT_ABORTED)
     try:
         fit = fit_for(quantity, counts, refs, bench, error)
@@ -102,7 +141,7 @@ def _calibrate(quantity: str, port, bench_path, at_turns, points, seconds, out, 
     click.echo(f"rms residual {fit.rms_residual:.3g} {unit}")
     click.echo(", ".join(f"{k} = {v:.8g}" for k, v in fit.result.items()))
     source = Path(bench.path or "bench.yaml")
-    target = Path(out) if out else Path(f"{source.stem}-{quantity}-{dt.date.today():%Y%m%d}.yaml")
+    target = _target(bench, quantity, out)
     try:
         written = write_new_bench(bench.source_text, str(source), target, quantity, fit.result,
                                   fit.record(device, note or ""))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -22,6 +23,20 @@ from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail, unwritable_reas
 def _default_out(first_run: str) -> Path:
     p = Path(first_run)
     return p.with_name(p.stem + "_diagnose")
+
+
+def _no_segments_hint(run: Any) -> str:
+    """What to do about a run without segments: infer them, or, when the import inferred none, why."""
+    import json
+
+    try:
+        seg = json.loads(run.attrs.get("metadata", "{}")).get("segments", {})
+    except (TypeError, ValueError, AttributeError):
+        seg = {}
+    if isinstance(seg, dict) and seg.get("mode") == "infer":
+        return ("its import inferred none: no move, heater or load change above the thresholds; "
+                "tsa-bench import --segment-threshold lowers them")
+    return "tsa-bench import --segments infer finds them"
 
 
 @click.command()
@@ -102,7 +117,7 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
     for r in runs:
         if len(r) and not (r.samples["segment"] >= 0).any():
             click.echo(f"diagnose: note: {r.path} has no segments: held-out blocks and resampling units are cut "
-                       "by time alone, not at segment ends (tsa-bench import --segments infer finds them)", err=True)
+                       f"by time alone, not at segment ends ({_no_segments_hint(r)})", err=True)
         if "force" in r.samples and not np.isfinite(np.asarray(r.samples["load"], float)).any():
             click.echo(f"diagnose: note: {r.path} has a measured force (the force column) and no declared load: "
                        "the model's initial load is used as the load, not the measured force", err=True)

@@ -6,8 +6,11 @@ Exit codes as in :mod:`tsa_bench.cli`.
 from __future__ import annotations
 
 import sys
+import threading
 
 import click
+
+from tsa_bench.cli.exits import fail
 
 from tsa_bench.cli.loading import ALLOW_URL, TRUST_FW, check_port_or_exit, load_bench_or_exit, load_plan_or_exit
 
@@ -69,20 +72,70 @@ def effects(bench_path: str | None) -> None:
               help="Bench file (default: configs/bench/sim.yaml).")
 @click.option("--speed", type=float, default=None, help="Real-time factor; default as fast as the client reads.")
 @click.option("--seed", type=int, default=None, help="Noise seed.")
-def sim_serve(bench_path: str | None, speed: float | None, seed: int | None) -> None:
+@click.option("--as-hardware", is_flag=True,
+              help="Rehearse the rig: the device does not say it is simulated (every question a real rig "
+                   "asks is asked), resets when a client opens the port (as a Mega's DTR does), powers up "
+                   "with its position unknown, and changes its load only when you type one here "
+                   "(grams, then Enter).")
+@click.option("--no-reset-on-open", "no_reset", is_flag=True,
+              help="With --as-hardware: a Mega wired not to reset when the port opens (a latched fault "
+                   "then outlives the program that caused it).")
+def sim_serve(bench_path: str | None, speed: float | None, seed: int | None, as_hardware: bool,
+              no_reset: bool) -> None:
     """Serve the simulated bench on a pseudo-terminal; prints its path, runs until Ctrl-C."""
+    import queue
+
     from tsa_bench.transport.pty_server import serve_pty
 
+    if no_reset and not as_hardware:
+        fail("--no-reset-on-open goes with --as-hardware")
     bench = load_bench_or_exit(bench_path)
+    loads: queue.SimpleQueue[float] | None = queue.SimpleQueue() if as_hardware else None
 
     def ready(path: str) -> None:
         click.echo(path)
-        click.echo(f"simulated bench '{bench.name}' serving on {path}; "
-                   f"run: tsa-bench run PROTOCOL --bench {bench.path} --port {path}   (Ctrl-C stops)", err=True)
+        if as_hardware:
+            load = float((bench.plant or {}).get("initial_load_g", 500))
+            click.echo(f"rehearsal rig '{bench.name}' on {path}: it passes for hardware (no SIMULATED flag); "
+                       f"{'' if no_reset else 'it resets when a program opens the port; '}it powers up with its "
+                       f"position unknown and {load:g} g hanging."
+                       f"\n  run: tsa-bench run PROTOCOL --bench arduino-mega.yaml --port {path}"
+                       "\n  hang a load: type its mass in grams here and press Enter (Ctrl-C stops)", err=True)
+            threading.Thread(target=_read_loads, args=(loads,), daemon=True).start()
+        else:
+            click.echo(f"simulated bench '{bench.name}' serving on {path}; "
+                       f"run: tsa-bench run PROTOCOL --bench {bench.path} --port {path}   (Ctrl-C stops)", err=True)
         sys.stdout.flush()
 
+    def reset(device) -> None:
+        kept = "position kept" if device.position_known else "position unknown"
+        click.echo(f"rig: reset (port opened): {kept}", err=True)
+
+    def fault(code: int) -> None:
+        from tsa_bench.device.faults import fault_name
+
+        click.echo(f"rig: fault {fault_name(code)} latched" if code else "rig: fault cleared", err=True)
+
     try:
-        serve_pty(bench, speed, seed, ready)
+        serve_pty(bench, speed, seed, ready, as_hardware=as_hardware, reset_on_open=not no_reset, loads=loads,
+                  on_reset=reset, on_fault=fault if as_hardware else None)
     except KeyboardInterrupt:
         pass
 
+
+def _read_loads(loads) -> None:
+    """Lines typed at the rehearsal rig: a mass in grams hangs that load."""
+    for line in sys.stdin:
+        text = line.strip().lower().removesuffix("g").strip()
+        if not text:
+            continue
+        try:
+            grams = float(text)
+        except ValueError:
+            click.echo(f"rig: {line.strip()!r} is not a mass in grams (type e.g. 350 and Enter)", err=True)
+            continue
+        if not 0 <= grams < 1e6:
+            click.echo(f"rig: {grams:g} g cannot hang here (0 to 1e6 g)", err=True)
+            continue
+        loads.put(grams)
+        click.echo(f"rig: {grams:g} g hanging now", err=True)

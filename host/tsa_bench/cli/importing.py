@@ -66,13 +66,27 @@ def _numbers(pairs: dict[str, str], option: str) -> dict[str, float]:
 @click.option("--segments", "segments", default="infer", show_default=True,
               help="infer (moves, holds, heater and load changes from the data), none, or column=NAME.")
 @click.option("--segment-threshold", "thresholds", multiple=True,
-              help="Override inference thresholds, e.g. turns=0.01,heater_V=0.1,load_N=0.2.")
+              help="Override inference settings, e.g. turns=0.01,heater_V=0.1,load_N=0.2, their hysteresis "
+                   "turns_hyst, heater_hyst_V, load_hyst_N (default a fifth of the threshold) and the minimum "
+                   "duration min_s (s).")
+@click.option("--load-g", "load_g", type=float, default=None,
+              help="The hanging load (g) of the whole run, stored as the declared load (same as --const load=Gg).")
+@click.option("--const", "consts", multiple=True,
+              help="A column of one value for every row: NAME=VALUE[UNIT], e.g. load=200g, temperature=23degC.")
+@click.option("--scale", "scales", multiple=True,
+              help="COLUMN=FACTOR multiplies a column (in its stored unit), or COLUMN=FACTOR UNIT calibrates a "
+                   "transducer's output, e.g. length=2.5mm/V for a column in V (repeatable, comma-separated).")
+@click.option("--offset", "offsets", multiple=True,
+              help="COLUMN=X[UNIT] adds X (stored unit unless given), after --negate and --scale, e.g. length=250.")
+@click.option("--negate", "negates", multiple=True,
+              help="COLUMN: change the sign of a column (a stage position counted the other way, a meter's sign).")
 @click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
 @click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
 def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], no_header: bool,
                delimiter: str | None, decimal: str | None, sheet: str | None, var: str | None, group: str | None,
                sample_period_s: float | None, time_order: str, segments: str, thresholds: tuple[str, ...],
-               metas: tuple[str, ...], out_file: str) -> None:
+               load_g: float | None, consts: tuple[str, ...], scales: tuple[str, ...], offsets: tuple[str, ...],
+               negates: tuple[str, ...], metas: tuple[str, ...], out_file: str) -> None:
     """Turn SOURCE (CSV/TSV/text, .xlsx, MATLAB .mat, LabVIEW .tdms) into a run file (backend "import").
 
     Prints every source column and where it went, what was done to the clock, the sample
@@ -87,11 +101,19 @@ def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], n
             click.echo(f"error: --meta: '{m}' is not KEY=VALUE", err=True)
             sys.exit(EXIT_BAD_INPUT)
         meta[key.strip()] = value
+    constants = _pairs(consts, "--const")
+    if load_g is not None:
+        if "load" in constants:
+            click.echo("error: --load-g and --const load=... both declare the load; give one", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        constants["load"] = f"{load_g:g}g"
     options = ImportOptions(mapping=_pairs(maps, "--map") if maps else None, units=_pairs(unit_opts, "--units"),
                             meta=meta, sample_period_s=sample_period_s, no_header=no_header, delimiter=delimiter,
                             decimal=decimal, sheet=sheet, var=var, group=group, time_order=time_order,
                             segments=segments, thresholds=_numbers(_pairs(thresholds, "--segment-threshold"),
-                                                                   "--segment-threshold"))
+                                                                   "--segment-threshold"),
+                            constants=constants, scale=_pairs(scales, "--scale"), offset=_pairs(offsets, "--offset"),
+                            negate=[c.strip() for n in negates for c in n.split(",") if c.strip()])
     try:
         summary = import_file(source, out_file, options)
     except ImportFileError as exc:
@@ -102,4 +124,6 @@ def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], n
         sys.exit(EXIT_BAD_INPUT)
     for line in summary.lines:
         click.echo(line)
+    for warning in summary.warnings:
+        click.echo(f"warning: {warning}", err=True)
     click.echo(f"wrote {summary.path} ({summary.n_samples} samples)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -36,12 +37,21 @@ def _rig(port: str | None, bench_path: str | None, allow_url: bool):
     return bench, url
 
 
-def _open_or_exit(url: str, bench):
+@contextmanager
+def _open_or_exit(url: str, bench, *, clear: bool = True):
+    """The open rig (:func:`tsa_bench.rig.link.open_link`), a fault latched before this command
+    cleared after saying so (unless ``clear`` is False); a device error anywhere inside (a
+    refusal, a stall without acknowledgement, a lost port) ends the command with one line,
+    exit 1. A caller that must keep something first catches the error itself and re-raises."""
+    from tsa_bench.device import DeviceError
     from tsa_bench.rig.link import RigError, open_link
 
     try:
-        return open_link(url, bench)
-    except RigError as exc:
+        with open_link(url, bench) as link:
+            if clear:
+                link.clear_fault(lambda text: click.echo(f"warning: {text}", err=True))
+            yield link
+    except (RigError, DeviceError) as exc:
         fail(str(exc), EXIT_FAILED)
 
 
@@ -90,9 +100,12 @@ def check(port: str | None, bench_path: str | None, seconds: float, period_s: fl
           allow_url: bool) -> None:
     """Identity, firmware and catalogue, fault state, and the sensors raw and converted.
 
-    Nothing moves and the heater stays off. Exit 1 when the device cannot be reached,
-    a fault is latched or a sensor never gives a valid reading.
+    Nothing moves and the heater stays off. A fault latched before the check is shown
+    (what, since when, what to do) and cleared; an unknown twist zero is reported. Exit 1
+    when the device cannot be reached, a fault stays latched or a sensor never gives a
+    valid reading.
     """
+    from tsa_bench.device.faults import fault_name
     from tsa_bench.protocol import msg
     from tsa_bench.rig.check import check_rig, findings
     from tsa_bench.rig.link import RigError
@@ -107,7 +120,7 @@ def check(port: str | None, bench_path: str | None, seconds: float, period_s: fl
                    f"{s.resistance_raw} counts = {res}   flags {s.adc_flags}   step {s.step_position}")
 
     try:
-        with _open_or_exit(url, bench) as link:
+        with _open_or_exit(url, bench, clear=False) as link:
             ident = link.identity
             click.echo(f"device       {url}: {'SIMULATED ' if link.simulated else ''}tsa-bench firmware "
                        f"{ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}, protocol v{ident.protocol_version}, "
@@ -116,11 +129,15 @@ def check(port: str | None, bench_path: str | None, seconds: float, period_s: fl
                        f"{ident.max_twist_steps / ident.steps_per_turn:g} turns at {ident.steps_per_turn} steps/turn, "
                        f"heater <= {ident.max_heater_mV / 1000:g} V, watchdog {ident.watchdog_ms} ms, "
                        f"queue {ident.queue_slots}")
+            cleared = link.clear_fault(lambda text: click.echo(f"fault        {text}"))
             rep = check_rig(link, seconds, period_s, show if live else None)
     except RigError as exc:
         fail(str(exc), EXIT_FAILED)
     fault = msg.Fault(rep.status.fault).name.lower() if rep.status.fault else "none"
-    click.echo(f"state        fault {fault}, twist {rep.twist_turns:g} turns, heater {rep.heater_V:g} V")
+    if cleared is not None and not rep.status.fault:
+        fault = f"none ({fault_name(cleared.fault)} cleared above)"
+    twist = "unknown (no twist zero: tsa-bench zero)" if rep.position_unknown else f"{rep.twist_turns:g} turns"
+    click.echo(f"state        fault {fault}, twist {twist}, heater {rep.heater_V:g} V")
     click.echo(f"samples      {rep.samples} over {rep.duration_s:.2f} s")
     for st, raw_unit in ((rep.length, "counts"), (rep.resistance, "counts")):
         if st.valid:
@@ -128,11 +145,17 @@ def check(port: str | None, bench_path: str | None, seconds: float, period_s: fl
                        f"{st.lo:.5g}..{st.hi:.5g}, std {st.std:.3g} {st.unit}; {st.valid}/{st.total} valid")
         else:
             click.echo(f"{st.name:<12} no valid reading ({st.total} samples)")
-    problems = findings(rep)
+    problems = findings(rep, cleared=cleared)
     for p in problems:
         click.echo(f"warning: {p}", err=True)
     hard = rep.status.fault or not rep.length.valid or not rep.resistance.valid
-    click.echo("check: FAILED" if hard else "check: ok" + (" (see the warnings)" if problems else ""))
+    if hard:
+        verdict = "FAILED"
+    elif rep.position_unknown:
+        verdict = "position unknown, sensors read (see the warnings)"
+    else:
+        verdict = "ok" + (" (see the warnings)" if problems else "")
+    click.echo(f"check: {verdict}")
     sys.exit(EXIT_FAILED if hard else 0)
 
 
@@ -188,6 +211,7 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
     rate N (turns/s)   heater V | heater off   wait S   stop   quit
     """
     from tsa_bench.cli.run import _out_path
+    from tsa_bench.device import DeviceError
     from tsa_bench.rig.jog import JogError, JogSession, parse_command
     from tsa_bench.rig.link import RigError
     from tsa_bench.store import RunWriter
@@ -230,12 +254,14 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
                     _run_keys(session, step_turns, heater_V, JogError)
             except KeyboardInterrupt:
                 status, reason = "aborted", "interrupted by the user (Ctrl-C)"
-            except RigError as exc:
+            except (RigError, DeviceError) as exc:
                 status, reason = "failed", str(exc)
             finally:
                 session.finish(status, reason)
     except RigError as exc:
         fail(str(exc), EXIT_FAILED)
+    if status == "failed":
+        click.echo(f"error: {reason}", err=True)
     click.echo(f"wrote {path}")
     sys.exit({"success": 0, "aborted": EXIT_ABORTED}.get(status, EXIT_FAILED))
 

@@ -238,7 +238,9 @@ def _execute_run(session: dict, interrupts) -> int:
     from tsa_bench.console.summary import format_run_info
     from tsa_bench.device import BenchClient, DeviceError
     from tsa_bench.protocol import msg
-    from tsa_bench.runner import AutoOperator, ConsoleOperator, PlanRejected, Runner, check_plan_against_device
+    from tsa_bench.operator import AutoOperator
+    from tsa_bench.operator.terminal import TerminalOperator
+    from tsa_bench.runner import PlanRejected, Runner, check_plan_against_device
     from tsa_bench.store import RunFileError, RunWriter
     from tsa_bench.store.inspect import inspect_run
     from tsa_bench.store.live import LiveSidecar
@@ -278,22 +280,27 @@ def _execute_run(session: dict, interrupts) -> int:
                     fail(f"{bench.path} describes a simulated bench (it has a plant section) but the device on "
                          f"{url} is real hardware: use a serial bench file such as configs/bench/arduino-mega.yaml "
                          "(or your calibrated copy); nothing was run")
-            operator = AutoOperator() if simulated else ConsoleOperator()
+            person = TerminalOperator()
+            operator = AutoOperator(say=person.tell) if simulated else person
             if resume is not None and not simulated:
-                _confirm_resume(resume)
+                _confirm_resume(resume, person)
             writer = RunWriter(path)
             if fil is not None:
                 from tsa_bench.simavr.operator import PlantOperator
-                operator = PlantOperator(fil)
+                operator = PlantOperator(fil, say=person.tell)
                 operator.apply_initial(plan.load_g if resume is None else resume.load_g)
         consumers = [writer, LiveSidecar(path)]  # sidecar after the writer: tsa-bench watch
         if _progress_can_show():
             from tsa_bench.console.progress import ProgressDisplay
 
-            consumers.append(ProgressDisplay())
+            display = ProgressDisplay()
+            consumers.append(display)
+            person.hold(display)   # off the screen while a person is asked
         runner = Runner(client, plan, bench, consumers, operator, backend=backend, port_name=url,
                         interrupts=interrupts, resume=resume, metadata=session["meta"])
         stop = runner.run()
+        if stop.exit_status == "success" and not simulated:
+            client.arm_reset()   # the next open resets the Mega: keep the position across that reset
     finally:
         ser.close()
         if fil is not None:
@@ -325,21 +332,31 @@ def _execute_run(session: dict, interrupts) -> int:
         status = "failed" if stop.exit_status == "success" else stop.exit_status
         click.echo(f"run {status}: {reason}", err=True)
         if status != "success":
-            click.echo(f"  to continue it later: tsa-bench run --resume {path}", err=True)
+            click.echo(f"  {_next_step(stop, path, resume)}", err=True)
     click.echo(f"wrote {path}" if path.exists() else f"no run file was written ({path})")
     if writer is not None and writer.full and stop.exit_status == "success":
         return EXIT_FAILED
     return {"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED)
 
 
-def _confirm_resume(resume) -> None:
+def _next_step(stop, path: Path, resume) -> str:
+    """What to do after a run that did not succeed: resume it, or (nothing was done) run it again."""
+    if stop.segments_done == 0:
+        again = f"the same command again (it resumes {resume.source})" if resume is not None else "it again"
+        return f"no segment was done: fix the cause above and run {again}; {path} records the attempt"
+    return f"to continue it later: tsa-bench run --resume {path}"
+
+
+def _confirm_resume(resume, person) -> None:
     """On a real rig a person confirms the rig is ready for the resumed segment."""
+    from tsa_bench.operator import OperatorAbsent
+
     load = "" if resume.load_g is None else f"; hang {resume.load_g:g} g"
-    click.echo(f"tsa-bench: {resume.describe()}", err=True)
+    person.tell(f"tsa-bench: {resume.describe()}")
     try:
-        reply = input(f">>> The motor will move to {resume.turns:g} turns from where the device is now{load}. "
-                      "Continue? [y/N] ")
-    except EOFError:
-        reply = ""
-    if reply.strip().lower() not in ("y", "yes"):
+        yes = person.confirm(f"The motor will move to {resume.turns:g} turns from where the device is now{load}. "
+                             "Continue?", if_no="nothing is run")
+    except OperatorAbsent as exc:
+        fail(f"{exc}; nothing was run")
+    if not yes:
         fail("not confirmed; nothing was run")

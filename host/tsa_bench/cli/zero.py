@@ -3,8 +3,9 @@
 The firmware refuses moves while it does not know the motor's position (after power-up,
 a reset while the motor turned, or a released motor) and keeps a declared position across
 resets when the driver stays energized (firmware/README.md, "The twist zero across
-resets"). Exit codes: 0 set, 1 the device could not be reached, refused, or the operator
-did not confirm, 2 bad input (nothing was sent).
+resets"). A fault latched before it is cleared after saying so. Exit codes: 0 set, 1 the
+device could not be reached, refused, or the operator did not confirm, 2 bad input
+(nothing was sent).
 """
 
 from __future__ import annotations
@@ -46,8 +47,7 @@ def zero(port: str | None, bench_path: str | None, turns: float, yes: bool, allo
             else:
                 click.echo(f"device position  {st.step_position / spt:g} turns ({st.step_position} steps)")
             what = "hanging untwisted (twist zero)" if turns == 0 else f"twisted by {turns:g} turns"
-            if not yes and not click.confirm(f"Is the TSA {what} now? Later twist limits count from here",
-                                             default=False):
+            if not yes and not _confirmed(f"Is the TSA {what} now? Later twist limits count from here."):
                 fail("not confirmed; the device's position is unchanged", EXIT_FAILED)
             steps = link.set_position(turns)
             after = link.status()
@@ -59,3 +59,14 @@ def zero(port: str | None, bench_path: str | None, turns: float, yes: bool, allo
         fail(f"the device reports {after.step_position} steps after SET_POSITION {steps}", EXIT_FAILED)
     click.echo(f"position set     {turns:g} turns ({steps} steps); the device keeps it across resets while its "
                f"driver stays energized")
+
+
+def _confirmed(question: str) -> bool:
+    """The person's answer through the operator channel (no answer possible: exit 1)."""
+    from tsa_bench.operator import OperatorAbsent
+    from tsa_bench.operator.terminal import TerminalOperator
+
+    try:
+        return TerminalOperator().confirm(question, if_no="the device's position stays unchanged")
+    except OperatorAbsent as exc:
+        fail(f"{exc}; give --yes to declare without asking; the device's position is unchanged", EXIT_FAILED)

@@ -19,14 +19,16 @@ from rich.console import Console
 UNWRAPPED_WIDTH = 100_000
 
 
-def make_console(*, stderr: bool = False, file: TextIO | None = None, terminal: bool | None = None) -> Console:
+def make_console(*, stderr: bool = False, file: TextIO | None = None, terminal: bool | None = None,
+                 markup: bool = True) -> Console:
     """A console on stdout (or stderr, or ``file``) that wraps only on a real terminal.
 
-    ``terminal`` forces the decision (None: ask the stream whether it is a tty).
+    ``terminal`` forces the decision (None: ask the stream whether it is a tty);
+    ``markup=False`` prints strings exactly as given (no [tags], no highlighting).
     """
     stream = file if file is not None else (sys.stderr if stderr else sys.stdout)
-    probe = Console(file=stream, force_terminal=terminal)
+    probe = Console(file=stream, force_terminal=terminal, markup=markup, highlight=markup)
     if probe.is_terminal:
         return probe
     return Console(file=stream, force_terminal=False, width=UNWRAPPED_WIDTH, soft_wrap=True,
-                   color_system=None, highlight=False, emoji=False)
+                   color_system=None, highlight=False, emoji=False, markup=markup)

@@ -3,7 +3,9 @@
 Contract: shows segment i of N, cycle, device time, ETA and the latest length and
 resistance while a run executes, refreshed by rich at a few Hz in its own thread,
 so the runner only stores numbers here (cheap at any sample rate). Disabled when the
-console is not a terminal (CI logs stay readable).
+console is not a terminal (CI logs stay readable). :meth:`ProgressDisplay.pause` and
+:meth:`~ProgressDisplay.resume` let an operator channel take the terminal while a
+person is asked (:class:`tsa_bench.operator.Pausable`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,9 @@ class ProgressDisplay:
     def __init__(self, console: Console | None = None) -> None:
         from tsa_bench.console.output import make_console
 
-        self.console = console or make_console(stderr=True)
+        # no markup or highlighting: text printed while the line shows (a redirected print, a
+        # prompt) comes out exactly as written, brackets and parentheses included
+        self.console = console or make_console(stderr=True, markup=False)
         self.enabled = self.console.is_terminal
         self._live: Live | None = None
         self.n_segments = 0
@@ -105,6 +109,15 @@ class ProgressDisplay:
 
                 # a Text, not markup: a prompt or a reason may hold "[" and "]"
                 self._live.console.print(Text(f"{hms(e.t)} {e.kind}: {e.detail}", style="yellow"))
+
+    def pause(self) -> None:
+        """Take the line off the screen (a person is being asked); :meth:`resume` brings it back."""
+        if self._live is not None and self._live.is_started:
+            self._live.stop()
+
+    def resume(self) -> None:
+        if self._live is not None and not self._live.is_started:
+            self._live.start()
 
     def on_stop(self, stop: RunStop) -> None:
         if self._live is not None:

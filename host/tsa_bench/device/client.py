@@ -8,8 +8,9 @@ waits for its ACK, retransmitting the identical frame on timeout (the device
 recognises the repeated sequence number and does not execute it twice) for as long
 as the device's watchdog could still be waiting for it (the retry budget: the
 watchdog period plus two ACK timeouts; IDENTITY's ``watchdog_ms``, the bench file's
-``watchdog_s`` before the handshake), so a line that stalls for less than the
-watchdog never fails a command. Every other message that arrives meanwhile is kept,
+``watchdog_s`` before the handshake, in wall time: after a busy spell of the host, what
+waited in the port spans device time the device did not spend waiting), so a line that
+stalls for less than the watchdog never fails a command. Every other message that arrives meanwhile is kept,
 in order, for ``poll()``. A port that offers ``read_frames``/``write_frame`` (``sim://``: the simulated device
 in this process) hands over decoded frames instead of bytes, read in the same sizes.
 Device frames pass the link layer first
@@ -18,10 +19,25 @@ reordered frames put back in order; its counters are :attr:`BenchClient.link`.
 The client never sleeps on wall time except while waiting for bytes from the port;
 ``on_wait`` (if set) is called while it waits, so a caller can break a long wait
 (the runner raises KeyboardInterrupt from it when the user asked to stop).
+Each QUEUE_STATUS that answers a HEARTBEAT is a clock sample ``(sent_s, received_s,
+device_us)`` (host ``time.monotonic`` at the HEARTBEAT's last transmission and at the
+reply's arrival, the device's t_us), kept for :meth:`BenchClient.take_round_trips`
+(the runner fits the device clock with them: runner/clock_fit.py).
+:meth:`BenchClient.arm_reset` tells the device the host is about to reopen the port on
+purpose, so the position survives that reset.
+
+Threads: the port is used under one lock, so :meth:`send_keepalive` may be called from
+another thread (:mod:`tsa_bench.device.keepalive`) while the owner reads or sends; every
+other method belongs to the thread that owns the session. A keepalive is never sent
+while a command waits for its ACK (the device recognises a repeat only as the frame it
+processed last, so a frame in between would make a retransmission execute twice) and
+its ACK is dropped on arrival (its QUEUE_STATUS is kept for ``poll()``, and is a clock
+sample like any other answer to a HEARTBEAT).
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -51,13 +67,19 @@ class BenchClient:
         self.retransmissions = 0
         self.late_dropped = 0
         self.last_tx_wall = time.monotonic()
+        self.last_read_wall = time.monotonic()   # when the owner last read the port (wall s)
         self.on_wait: Callable[[], None] | None = None
+        self._io = threading.RLock()   # the port, the sequence numbers, _in_flight
+        self._in_flight = False        # a command waits for its ACK (no keepalive in between)
+        self._keepalive_seqs: deque[int] = deque(maxlen=64)   # keepalives whose ACK is dropped
         self._seq = 0
         self._decoder = MessageDecoder()
         self._sequencer = FrameSequencer()
         self._inbox: deque[NamedTuple] = deque()
         self._last_dev_us: int | None = None
         self._late_acks: list[msg.Ack] = []
+        self._heartbeat_sent_s: float | None = None
+        self._round_trips: deque[tuple[float, float, int]] = deque(maxlen=256)
         # ports with a simulated device in this process (sim://) pass frames without bytes;
         # looked up on the class, so a wrapper that only forwards attributes (a port that
         # drops or corrupts bytes) keeps the byte path
@@ -85,16 +107,22 @@ class BenchClient:
         return self._decoder.errors
 
     def _read(self) -> list[NamedTuple]:
+        received, heartbeat_s = 0.0, None
         try:
-            waiting = self.port.in_waiting
-            # read(1) blocks up to the port timeout when nothing is waiting
             if self._read_frames is not None:   # an in-process simulated device: frames as they are
-                frames = self._read_frames(min(max(1, waiting), READ_CHUNK))
+                received, heartbeat_s = time.monotonic(), self._heartbeat_sent_s
+                frames = self._read_frames(min(max(1, self.port.in_waiting), READ_CHUNK))  # (no keepalive thread)
             else:
-                data = self.port.read(min(max(1, waiting), READ_CHUNK))
+                with self._io:
+                    # read(1) blocks up to the port timeout when nothing is waiting
+                    data = self.port.read(min(max(1, self.port.in_waiting), READ_CHUNK))
+                    # taken under the lock: a reply in these bytes answers a HEARTBEAT sent
+                    # at or before this stamp, never one a keepalive sends after the read
+                    received, heartbeat_s = time.monotonic(), self._heartbeat_sent_s
                 frames = self._decoder.feed(data) if data else []
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
+        self.last_read_wall = time.monotonic()
         if self._read_frames is not None:   # in process: in order and none lost (checked at its ends)
             frames = self._sequencer.push_consecutive(frames)
             out = [f.message for f in frames]
@@ -103,6 +131,8 @@ class BenchClient:
         else:
             frames = self._sequencer.push(frames)
             out = expand(f.message for f in frames)   # a SAMPLE_BLOCK becomes its samples
+            if self._keepalive_seqs:
+                out = [m for m in out if not self._keepalive_ack(m)]
         for late in self._sequencer.take_late():
             if isinstance(late.message, msg.Ack):
                 self._late_acks.append(late.message)  # may still answer the command awaited now
@@ -113,17 +143,50 @@ class BenchClient:
             if t_us is not None:
                 self._last_dev_us = t_us
                 break
+        if heartbeat_s is not None and msg.QueueStatus in set(map(type, out)):
+            for m in out:
+                if type(m) is msg.QueueStatus:
+                    self._round_trips.append((heartbeat_s, received, m.t_us))
+            with self._io:
+                if self._heartbeat_sent_s == heartbeat_s:   # not a newer keepalive's
+                    self._heartbeat_sent_s = None
         return out
 
     def _write(self, frame: bytes, seq: int | None = None, message: NamedTuple | None = None) -> None:
         try:
             if self._write_frame is not None and message is not None:
                 self._write_frame(frame, seq, message)
+                self.last_tx_wall = time.monotonic()
             else:
-                self.port.write(frame)
+                with self._io:
+                    self.port.write(frame)
+                    self.last_tx_wall = time.monotonic()
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"lost the connection on {self._port_name()}: {exc}") from None
-        self.last_tx_wall = time.monotonic()
+
+    def _keepalive_ack(self, m: NamedTuple) -> bool:
+        if type(m) is not msg.Ack:
+            return False
+        with self._io:
+            if m.acked_seq in self._keepalive_seqs:
+                self._keepalive_seqs.remove(m.acked_seq)
+                return True
+        return False
+
+    def send_keepalive(self, quiet_s: float) -> bool:
+        """From any thread: send HEARTBEAT (not waiting for its ACK) if nothing was sent for
+        ``quiet_s`` of wall time and no command waits for its ACK. True if it was sent.
+        Only for a byte port (a real line, a pty); False on ``sim://`` in this process."""
+        if self._write_frame is not None:
+            return False
+        with self._io:
+            if self._in_flight or time.monotonic() - self.last_tx_wall < quiet_s:
+                return False
+            seq = self._next_seq()
+            self._keepalive_seqs.append(seq)
+            self._write(encode(msg.Heartbeat(), seq))
+            self._heartbeat_sent_s = self.last_tx_wall   # its QUEUE_STATUS is a clock sample
+            return True
 
     def _port_name(self) -> str:
         return str(getattr(self.port, "port", None) or getattr(self.port, "name", "the port"))
@@ -172,11 +235,11 @@ class BenchClient:
                 raise DeviceMismatch(
                     f"the device on {self._port_name()} refused our HELLO "
                     f"(status {msg.Status(reply.status).name}): it speaks another protocol version or "
-                    "catalogue; flash the firmware built from this checkout (make -C firmware flash)")
+                    "catalogue; flash the firmware built from this checkout (make -C firmware flash, in the source checkout: a wheel carries no firmware)")
         raise DeviceNotFound(
             f"no answer from a tsa-bench device on {self._port_name()} at {baud or getattr(self.port, 'baudrate', '?')} "
             "baud. Check: the port (is it the Arduino Mega? `python -m serial.tools.list_ports`), the baud rate "
-            "(the firmware uses 250000), and that the tsa-bench firmware is flashed (make -C firmware flash)"
+            "(the firmware uses 250000), and that the tsa-bench firmware is flashed (make -C firmware flash, in the source checkout: a wheel carries no firmware)"
             + ("" if self.boot else "; no boot announcement was seen either"))
 
     @staticmethod
@@ -186,9 +249,10 @@ class BenchClient:
                 f"device speaks protocol v{ident.protocol_version} catalogue 0x{ident.catalogue_hash:08X}, "
                 f"host speaks v{msg.PROTOCOL_VERSION} catalogue 0x{msg.CATALOGUE_HASH:08X} "
                 f"(firmware {ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}); rebuild and flash the firmware "
-                "from this checkout (make -C firmware flash) or install the matching tsa-bench")
+                "from this checkout (make -C firmware flash, in the source checkout: a wheel carries no firmware) or install the matching tsa-bench")
 
     def _next_seq(self) -> int:
+        """The next sequence number (a thread sending on a byte port holds ``_io``)."""
         self._seq = (self._seq + 1) & 0xFFFF
         return self._seq
 
@@ -231,14 +295,27 @@ class BenchClient:
         With ``check`` a NAK raises :class:`CommandRefused`; otherwise it is returned.
         """
         spec = spec_of(message)
-        seq = self._next_seq()
-        frame = encode(message, seq) if self._write_frame is None else b""  # in-process: no bytes
-        wall0, dev0 = time.monotonic(), self._last_dev_us
+        if self._write_frame is None:
+            with self._io:
+                self._in_flight = True
+                seq = self._next_seq()
+            frame = encode(message, seq)
+        else:   # in process: no bytes, no keepalive thread
+            seq, frame = self._next_seq(), b""
+        try:
+            return self._transact(message, spec, seq, frame, check)
+        finally:
+            self._in_flight = False
+
+    def _transact(self, message: NamedTuple, spec: Any, seq: int, frame: bytes, check: bool) -> msg.Ack:
+        wall0 = time.monotonic()
         transmissions = 0
         while True:
             if transmissions:
                 self.retransmissions += 1
             self._write(frame, seq, message)
+            if type(message) is msg.Heartbeat:
+                self._heartbeat_sent_s = self.last_tx_wall
             transmissions += 1
             ack = self._await(lambda m: isinstance(m, msg.Ack) and m.acked_seq == seq, self.ack_timeout_s)
             if ack is not None:
@@ -248,9 +325,9 @@ class BenchClient:
                                          f"{msg.Status(ack.status).name.lower()}"
                                          f"{refusal_reason(message, ack.status)}")
                 return ack
+            # giving up is judged in wall time only: after the host was busy, what waited in
+            # the port spans seconds of device time without the device having waited at all
             waited_s = time.monotonic() - wall0
-            if dev0 is not None and self._last_dev_us is not None:
-                waited_s = max(waited_s, (self._last_dev_us - dev0) / 1e6)
             if transmissions >= 2 and waited_s >= self.retry_budget_s:
                 raise NoAcknowledgement(
                     f"no ACK for {spec.name} after {transmissions} transmissions over {waited_s:.2f} s on "
@@ -285,6 +362,21 @@ class BenchClient:
             raise NoAcknowledgement(f"no QUEUE_STATUS after HEARTBEAT on {self._port_name()}")
         self._inbox.append(found)
         return found  # type: ignore[return-value]
+
+    def take_round_trips(self) -> list[tuple[float, float, int]]:
+        """HEARTBEAT round trips since the last call: ``(sent_s, received_s, device_us)``."""
+        out = list(self._round_trips)
+        self._round_trips.clear()
+        return out
+
+    def arm_reset(self) -> bool:
+        """ARM_RESET before the port is closed and opened again on purpose (a Mega resets
+        when its port opens): the device keeps its position across that reset. Best effort:
+        False when the device refused (position unknown, a move under way) or did not answer."""
+        try:
+            return self.command(msg.ArmReset(), check=False).status == msg.Status.OK
+        except (NoAcknowledgement, ConnectionLost):
+            return False
 
     def set_position(self, steps: int) -> msg.Ack:
         """SET_POSITION: declare where the motor is now (steps; 0 = strings untwisted).

@@ -3,7 +3,8 @@
 One module per concern: :mod:`.detect` (which format), :mod:`.text`, :mod:`.spreadsheet`,
 :mod:`.matlab`, :mod:`.tdms` (readers into a :class:`.table.SourceTable`),
 :mod:`.headers` (names and units in headers), :mod:`.columns` (which column goes where,
-in which unit), :mod:`.values` (cell checks), :mod:`.clock` (time order, sample rate),
+in which unit), :mod:`.values` (cell checks), :mod:`.adjust` (constants, sign, offset,
+scale declared by the user; impossible values), :mod:`.clock` (time order, sample rate),
 :mod:`.segments` (segments for imported runs), :mod:`.writer` (the run file) and
 :mod:`.pipeline` (:func:`import_file`, the whole import).
 """

@@ -2,7 +2,8 @@
 
 Recognised by content: Excel workbooks (a zip holding ``xl/``), MATLAB v5 (``MATLAB 5.0
 MAT-file`` header) and v7.3 (``MATLAB 7.3 MAT-file`` header in an HDF5 user block),
-LabVIEW TDMS (``TDSm``), text (no NUL bytes in its first 64 KiB). Anything else - a
+LabVIEW TDMS (``TDSm``), text (no NUL bytes in its first 64 KiB) unless named ``.m``
+(MATLAB source, refused with the hint to save the workspace as .mat). Anything else - a
 legacy ``.xls``, a zip that is not a workbook, a plain HDF5 file, other binary data - is
 refused naming what it looks like and the formats supported (:data:`.errors.SUPPORTED`).
 """
@@ -45,6 +46,9 @@ def sniff(path: Path) -> str:
     elif head.startswith(b"\x89HDF\r\n\x1a\n"):
         looks = ("an HDF5 file (a tsa-bench run file needs no import; a MATLAB v7.3 file starts with its "
                  "'MATLAB 7.3 MAT-file' header)")
+    elif b"\0" not in head and suffix == ".m":
+        looks = ("MATLAB source code (a script or function), not data: run it in MATLAB and save the workspace "
+                 "as a .mat file (save('run.mat')), then import that")
     elif b"\0" not in head:
         return "text"
     else:
@@ -63,6 +67,6 @@ def read_source(path: Path, options: Any) -> SourceTable:
         return read_xlsx(path, options.sheet, options.no_header)
     if fmt in ("mat5", "mat73"):
         from tsa_bench.importers.matlab import read_mat
-        return read_mat(path, options.var, fmt)
+        return read_mat(path, options.var, fmt, list((options.mapping or {}).values()))
     from tsa_bench.importers.tdms import read_tdms
     return read_tdms(path, options.group)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 
 from tsa_bench.rundocs import SAMPLE_COLUMNS
-from tsa_bench.units import CHANNELS, UnitError, channel_conversion, parse_unit
+from tsa_bench.units import CHANNELS, AmbiguousUnitError, UnitError, channel_conversion, parse_unit
 
 _BRACKETS = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
@@ -40,6 +40,8 @@ def split_header(cell: str) -> tuple[str, str]:
         if head.strip() and tail.strip():
             try:
                 parse_unit(tail.strip())
+            except AmbiguousUnitError:
+                pass  # a unit, if an ambiguous one: refused when converted
             except UnitError:
                 return name, ""
             return head.strip(), tail.strip()
@@ -71,6 +73,8 @@ def suffix_unit(name: str) -> tuple[str, str]:
         if base and suffix:
             try:
                 parse_unit(suffix)
+            except AmbiguousUnitError:
+                return base, suffix  # a unit, if an ambiguous one: refused (naming both readings) when converted
             except UnitError:
                 return name, ""
             return base, suffix
@@ -85,6 +89,8 @@ def guess_target(name: str, unit: str) -> str | None:
         cand = SYMBOLS[name.strip()]
         try:
             channel_conversion(cand, unit)
+        except AmbiguousUnitError:
+            return cand  # refused when converted, naming both readings
         except UnitError:
             return None
         return cand
@@ -98,6 +104,8 @@ def name_unit(target: str, name: str) -> str:
     suffix = name.rsplit("_", 1)[1]
     try:
         channel_conversion(target, suffix)
+    except AmbiguousUnitError:
+        return suffix
     except UnitError:
         return ""
     return suffix

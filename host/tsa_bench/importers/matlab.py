@@ -1,11 +1,17 @@
 """MATLAB .mat files: v5 through scipy.io, v7.3 (HDF5) through h5py.
 
 Contract of :func:`read_mat`: the variable ``var`` (or, without it, the file's only
-matrix or struct, or all its vectors of one length) becomes the table:
+matrix or struct, or all its vectors of one length, or the vectors ``--map`` names) becomes
+the table:
 
 * a struct of vectors: one column per field, named by the field;
 * a matrix: one column per column (the shorter side is the columns), named by position;
 * vectors: one column each, named by the variable.
+
+Vectors (or struct fields) of different lengths: the ones ``--map`` names (``wanted``) are
+taken, and must then be of one length; the others are left out, said so. Without
+``--map`` a struct keeps its fields of the longest length and loose vectors need ``--var``
+or ``--map``.
 
 v7.3 files store arrays transposed (MATLAB is column-major); they are turned back. Rows
 are numbered from 1 in messages (``file:row 12``).
@@ -74,13 +80,28 @@ def _describe(d: dict[str, Any]) -> str:
     return ", ".join(parts) or "none"
 
 
-def _columns(path: Path, name: str, v: Any) -> tuple[list[Column], bool, list[str]]:
+def _chosen(path: Path, what: str, vectors: dict[str, np.ndarray], wanted: list[str]) -> dict[str, np.ndarray]:
+    """The vectors ``wanted`` names (exactly or in another case); they must be of one length."""
+    low = {k.lower(): k for k in vectors}
+    names = [w if w in vectors else low.get(w.lower()) for w in wanted]
+    picked = {k: vectors[k] for k in names if k is not None}
+    if not picked:
+        return {}
+    lengths = {len(a) for a in picked.values()}
+    if len(lengths) > 1:
+        raise ImportFileError(f"{path}: the {what} --map names are of different lengths "
+                              f"({', '.join(f'{k} {len(a)}' for k, a in picked.items())}); map vectors of one length")
+    return picked
+
+
+def _columns(path: Path, name: str, v: Any, wanted: list[str]) -> tuple[list[Column], bool, list[str]]:
     if isinstance(v, dict):
         cols = [(k, _numeric(x)) for k, x in v.items()]
         cols = [(k, a) for k, a in cols if a is not None and a.ndim == 1]
         if not cols:
             raise ImportFileError(f"{path}: struct '{name}' has no numeric vector fields ({_describe(v)})")
-        n = max(len(a) for _, a in cols)
+        picked = _chosen(path, f"fields of struct '{name}'", dict(cols), wanted)
+        n = len(next(iter(picked.values()))) if picked else max(len(a) for _, a in cols)
         kept = [Column(k, a) for k, a in cols if len(a) == n]
         notes = [f"struct '{name}': fields {', '.join(c.name for c in kept)}"]
         dropped = [k for k, a in cols if len(a) != n]
@@ -100,24 +121,33 @@ def _columns(path: Path, name: str, v: Any) -> tuple[list[Column], bool, list[st
         f"matrix '{name}' {a.shape[0]}x{a.shape[1]}: columns named by position (--map t=1,...)"]
 
 
-def read_mat(path: Path, var: str | None, fmt: str) -> SourceTable:
-    """Read a .mat file (module contract) into a :class:`SourceTable`."""
+def read_mat(path: Path, var: str | None, fmt: str, wanted: list[str] | None = None) -> SourceTable:
+    """Read a .mat file (module contract) into a :class:`SourceTable`; ``wanted``: the names ``--map`` gives."""
+    wanted = wanted or []
     d = _v5(path) if fmt == "mat5" else _v73(path)
     version = "v5" if fmt == "mat5" else "v7.3"
     if var is not None:
         if var not in d:
             raise ImportFileError(f"{path}: no variable '{var}' (variables: {_describe(d)})")
-        cols, named, notes = _columns(path, var, d[var])
+        cols, named, notes = _columns(path, var, d[var], wanted)
     else:
         structs = [k for k, v in d.items() if isinstance(v, dict)]
         arrays = {k: a for k, v in d.items() if not isinstance(v, dict) for a in [_numeric(v)] if a is not None}
         matrices = [k for k, a in arrays.items() if a.ndim == 2]
         vectors = {k: a for k, a in arrays.items() if a.ndim == 1}
         if len(structs) + len(matrices) == 1 and not vectors:
-            cols, named, notes = _columns(path, (structs + matrices)[0], d[(structs + matrices)[0]])
+            cols, named, notes = _columns(path, (structs + matrices)[0], d[(structs + matrices)[0]], wanted)
         elif vectors and not structs and not matrices and len({len(a) for a in vectors.values()}) == 1:
             cols, named, notes = [Column(k, a) for k, a in vectors.items()], True, [f"vectors {', '.join(vectors)}"]
+        elif picked := _chosen(path, "vectors", vectors, wanted):
+            n = len(next(iter(picked.values())))
+            same = {k: a for k, a in vectors.items() if len(a) == n}  # unmapped ones of that length are picked up
+            other = [f"{k} ({len(a)})" for k, a in vectors.items() if len(a) != n]
+            cols, named = [Column(k, a) for k, a in same.items()], True
+            notes = [f"vectors {', '.join(same)} ({n} rows, chosen by --map)"] + (
+                [f"vectors of another length left out: {', '.join(other)}"] if other else [])
         else:
-            raise ImportFileError(f"{path}: choose the variable with --var (variables: {_describe(d)})")
+            raise ImportFileError(f"{path}: choose the variable with --var, or the vectors with --map "
+                                  f"(variables: {_describe(d)})")
     n = len(cols[0].values)
     return SourceTable(path, f"MATLAB {version}", cols, np.arange(1, n + 1), None, named, notes, row_prefix="row ")

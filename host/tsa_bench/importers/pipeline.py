@@ -6,11 +6,14 @@ columns placed (:mod:`.columns`) and checked (:mod:`.values`), its clock put in 
 (:mod:`.writer`) with ``backend`` "import", ``exit_status`` "success" and in
 ``metadata``: the source file and format, the column map, the source units,
 ``extra_columns`` (name: unit), ``time_order`` (what was done to the clock), the
-``sample_rate`` found, ``segments`` (how they were made, with the thresholds), and a
-``time`` note when t was made from the row order. Every problem raises
+``sample_rate`` found, ``segments`` (how they were made, with the thresholds), the
+``constants`` declared and the ``adjustments`` (negate, scale, offset) made, and a
+``time`` note when t was made from the row order. An import that places no measured
+column (only t) is refused. Every problem raises
 :class:`ImportFileError` naming the file, the line (row) and the column, before anything
 is written. The returned :class:`ImportSummary` lists every source column, where it went
-and with which unit, every column left out and why, and what was done.
+and with which unit and factor, every column left out and why, and what was done; its
+``warnings`` name impossible values (:func:`.adjust.impossible`) and the option that fixes each.
 """
 
 from __future__ import annotations
@@ -22,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from tsa_bench.importers import clock, segments as segs
+from tsa_bench.importers import adjust, clock, segments as segs
 from tsa_bench.importers.columns import Choice, resolve, units_for
 from tsa_bench.importers.detect import read_source
 from tsa_bench.importers.errors import ImportFileError
-from tsa_bench.importers.headers import same_unit
+from tsa_bench.importers.headers import same_unit, split_header
 from tsa_bench.importers.values import converted
 from tsa_bench.importers.writer import fill, start_record, write_run
 from tsa_bench.rundocs import SAMPLE_COLUMNS
@@ -36,7 +39,9 @@ from tsa_bench.rundocs import SAMPLE_COLUMNS
 class ImportOptions:
     """What the user said. ``mapping`` {target: source column (name or 1-based position)};
     ``units`` {target or column: unit}; ``segments`` "infer", "none" or "column=NAME";
-    ``thresholds`` overrides of :data:`.segments.DEFAULTS`; reader options as named."""
+    ``thresholds`` overrides of :data:`.segments.DEFAULTS`; ``constants`` {target: "VALUE[UNIT]"},
+    ``scale`` {column: "F[UNIT]"}, ``offset`` {column: "X[UNIT]"}, ``negate`` columns
+    (:mod:`.adjust`); reader options as named."""
 
     mapping: dict[str, str] | None = None
     units: dict[str, str] = field(default_factory=dict)
@@ -51,16 +56,21 @@ class ImportOptions:
     time_order: str = "error"
     segments: str = "none"
     thresholds: dict[str, float] = field(default_factory=dict)
+    constants: dict[str, str] = field(default_factory=dict)
+    scale: dict[str, str] = field(default_factory=dict)
+    offset: dict[str, str] = field(default_factory=dict)
+    negate: list[str] = field(default_factory=list)
 
 
 @dataclass
 class ImportSummary:
-    """What the import did, for the user: one line each."""
+    """What the import did, for the user: one line each; ``warnings`` name impossible values."""
 
     path: Path
     fmt: str
     n_samples: int
     lines: list[str]
+    warnings: list[str] = field(default_factory=list)
 
 
 def _segment_spec(spec: str, table: Any) -> tuple[str, int | None]:
@@ -83,11 +93,48 @@ def _describe(table: Any, chosen: list[Choice], left: dict[int, str]) -> list[st
         label = f"column {table.label(i)}"
         if i in by_index:
             c = by_index[i]
-            conv = f"{c.unit}" + (f" -> {c.stored}" if c.stored and not same_unit(c.stored, c.unit) else "")
+            conv = f"{c.unit}" + (f" -> {c.stored}, x{c.factor:g}" + (f" {c.offset:+g}" if c.offset else "")
+                                  if c.stored and not same_unit(c.stored, c.unit) else "")
             out.append(f"  {label} -> {c.target} ({c.kind}, {c.how}) [{conv or '1'}]")
         else:
             out.append(f"  {label} left out: {left.get(i, 'not used')}")
     return out
+
+
+def _segments(seg_mode: str, seg_index: int | None, seg_values: Any, table: Any,
+              data: dict[str, np.ndarray], samples: dict[str, np.ndarray], thr: dict[str, float]
+              ) -> tuple[list, dict[str, Any], list[str]]:
+    """(records, metadata, summary lines) of the segments (module contract); fills samples["segment"]."""
+    records: list = []
+    meta: dict[str, Any] = {"mode": seg_mode}
+    if "segment" in data and seg_mode == "infer":
+        meta["mode"] = "segment column (kept)"
+        lines = ["segments: the file's segment column is kept (no /segments rows: their kinds are unknown)"]
+    elif seg_mode == "column":
+        samples["segment"], records = segs.from_column(samples["t"], seg_values, samples["motor_moving"])
+        meta["column"] = table.label(seg_index)
+        lines = [f"segments: {len(records)} from column {table.label(seg_index)}"]
+    elif seg_mode == "infer":
+        samples["segment"], records = segs.infer(samples, samples["motor_moving"], thr)
+        meta["thresholds"] = thr
+        th = f"thresholds: {segs.describe(thr)} (--segment-threshold)"
+        if records:
+            kinds = {k: sum(r.kind == k for r in records) for k in ("move", "hold", "heater")}
+            lines = [f"segments inferred: {len(records)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}); {th}"]
+        else:
+            lines = [f"segments: none inferred (no moves, heater or load changes; {th}): fit and diagnose will "
+                     "use the whole run"]
+    else:
+        lines = ["segments: none (--segments none): fit and diagnose will use the whole run"]
+    meta["n"] = len(records)
+    return records, meta, lines
+
+
+def _no_measured_column(table: Any, chosen: list[Choice], left: dict[int, str]) -> ImportFileError:
+    why = "; ".join(f"column {table.label(i)}: {w}" for i, w in list(left.items())[:6])
+    return ImportFileError(f"{table.where()}: no measured column placed, only "
+                           f"{'t' if chosen else 'synthetic time'} ({why or 'the file has no other column'}); "
+                           "map one, e.g. --map length=COLUMN (nothing written)")
 
 
 def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptions) -> ImportSummary:
@@ -104,18 +151,35 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
     if unknown:
         raise ImportFileError(f"--segment-threshold: unknown {', '.join(sorted(unknown))} "
                               f"(known: {', '.join(segs.DEFAULTS)})")
+    try:
+        thr = segs.settings(o.thresholds)
+    except ValueError as exc:
+        raise ImportFileError(f"--segment-threshold: {exc}") from None
+    adjust.scales(o.scale)   # a malformed --scale is named before the file is read
     table = read_source(src, o)
     if table.n_rows == 0:
         raise ImportFileError(f"{table.path}: no data rows" + (" after the header" if table.has_header else ""))
     seg_mode, seg_index = _segment_spec(o.segments, table)
     timed = o.sample_period_s is None
-    chosen, left = resolve(table, o.mapping, timed, (seg_index,) if seg_index is not None else ())
-    units_for(table, chosen, o.units)
+    chosen, left, guessed = resolve(table, o.mapping, timed, (seg_index,) if seg_index is not None else ())
+    if not any(c.target != "t" for c in chosen):
+        raise _no_measured_column(table, chosen, left)
+    consts = adjust.constants(o.constants, {c.target for c in chosen})
+    names = {n: c.target for c in chosen for n in (table.names[c.index], split_header(table.names[c.index])[0]) if n}
+    factors, calibrations, offsets, negate = adjust.keyed(o.scale, o.offset, o.negate,
+                                                          [c.target for c in chosen] + list(consts), names)
+    units_for(table, chosen, o.units, {k: (factors[k], u) for k, u in calibrations.items()})
     data = converted(table, chosen)
     lines = [f"read {src} as {table.fmt}"] + [f"  {note}" for note in table.notes]
     lines.append(f"{len(table.columns)} source columns:")
-    lines += _describe(table, chosen, left)
+    lines += _describe(table, chosen, left) + [f"  {g}" for g in guessed]
     n0 = table.n_rows
+    for k, (value, unit, given) in consts.items():
+        data[k] = np.full(n0, value)
+        lines.append(f"  {k} = {given} for every row ({value:g} {unit}; --const)")
+    units = {c.target: c.stored for c in chosen} | {k: u for k, (_, u, _) in consts.items()}
+    lines += adjust.apply(data, units, factors, offsets, negate, calibrations)
+    warnings = adjust.impossible(data)
     if not timed:
         data["t"] = np.arange(n0, dtype=float) * o.sample_period_s
         keep, order = np.arange(n0), {"mode": "row order", "rows_affected": 0}
@@ -125,7 +189,7 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
             lines.append("  t from the file's waveform timing (wf_increment)")
         tcol = next((f"{table.label(c.index)}" for c in chosen if c.target == "t"), "'waveform time'")
         keep, order = clock.order_rows(data["t"], o.time_order, table.where, tcol)
-    if len(keep) != n0:
+    if order["rows_affected"]:  # sorted rows are stored sorted (not only counted): every column, in the order kept
         data = {k: v[keep] for k, v in data.items()}
     if order.get("said"):
         lines.append(f"time order: {order['said']}")
@@ -138,34 +202,12 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
     if "load" in data and len(np.unique(data["load"][np.isfinite(data["load"])])) > 20:
         lines.append("note: the declared load takes more than 20 values: if it is a measured force (a load cell), "
                      "map it as force (--map force=COLUMN); fit counts every declared load")
-    extras = {k: (data.pop(k), c.stored) for c in chosen for k in [c.target] if k not in SAMPLE_COLUMNS}
+    extras = {k: (data.pop(k), units[k]) for k in list(data) if k not in SAMPLE_COLUMNS}
     samples = fill(data, n)
-    thr = {**segs.DEFAULTS, **o.thresholds}
     if "motor_moving" not in data and "turns" in data:
-        samples["motor_moving"] = segs.moving_from_turns(samples["turns"], thr["turns"])
-    records: list = []
-    seg_meta: dict[str, Any] = {"mode": seg_mode}
-    if "segment" in data and seg_mode == "infer":
-        seg_mode = seg_meta["mode"] = "segment column (kept)"
-        lines.append("segments: the file's segment column is kept (no /segments rows: their kinds are unknown)")
-    elif seg_mode == "column":
-        samples["segment"], records = segs.from_column(samples["t"], seg_values, samples["motor_moving"])
-        seg_meta["column"] = table.label(seg_index)
-        lines.append(f"segments: {len(records)} from column {table.label(seg_index)}")
-    elif seg_mode == "infer":
-        samples["segment"], records = segs.infer(samples, samples["motor_moving"], thr)
-        seg_meta["thresholds"] = thr
-        th = f"thresholds: turns {thr['turns']:g} turn, heater {thr['heater_V']:g} V, load {thr['load_N']:g} N"
-        if records:
-            kinds = {k: sum(r.kind == k for r in records) for k in ("move", "hold", "heater")}
-            lines.append(f"segments inferred: {len(records)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}); "
-                         f"{th} (--segment-threshold)")
-        else:
-            lines.append(f"segments: none inferred (no moves, heater or load changes; {th}): "
-                         "fit and diagnose will use the whole run")
-    else:
-        lines.append("segments: none (--segments none): fit and diagnose will use the whole run")
-    seg_meta["n"] = len(records)
+        samples["motor_moving"] = segs.moving_from_turns(samples["turns"], samples["t"], thr)
+    records, seg_meta, seg_lines = _segments(seg_mode, seg_index, seg_values, table, data, samples, thr)
+    lines += seg_lines
     t0, t1 = float(samples["t"][0]), float(samples["t"][-1])
     metadata: dict[str, Any] = {**o.meta, "imported_from": str(src), "source_format": table.fmt,
                                 "column_map": {c.target: table.names[c.index] or table.label(c.index) for c in chosen},
@@ -177,6 +219,14 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
         metadata["columns_left_out"] = {table.names[i] or table.label(i): why for i, why in left.items()}
     if extras:
         metadata["extra_columns"] = {k: u for k, (_, u) in extras.items()}
+    if consts:
+        metadata["constants"] = {k: given for k, (_, _, given) in consts.items()}
+    if factors or offsets or negate or calibrations:
+        metadata["adjustments"] = {"negate": sorted(negate),
+                                   "scale": {k: f"{f:g}{calibrations.get(k, '')}" for k, f in factors.items()},
+                                   "offset": {k: f"{x:g}{u}" for k, (x, u) in offsets.items()}}
+    if warnings:
+        metadata["import_warnings"] = warnings
     if not timed:
         metadata["time"] = f"no time column: t = row index x {o.sample_period_s:g} s (rows in file order)"
     start = start_record(o.meta.get("name", src.stem), src, t1 - t0, len(records), metadata)
@@ -184,4 +234,4 @@ def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptio
         write_run(out, start, samples, extras, records, f"imported from {src.name}")
     except FileExistsError:
         raise ImportFileError(f"{out} already exists; choose another --out (existing runs are never replaced)") from None
-    return ImportSummary(out, table.fmt, n, lines)
+    return ImportSummary(out, table.fmt, n, lines, warnings)

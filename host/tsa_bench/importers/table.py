@@ -25,12 +25,12 @@ class Column:
 class SourceTable:
     """A source file read into columns. ``header_line`` is the 1-based line (or row) of the
     header, None without one; ``row_lines`` the line (row) number of each data row, for
-    messages; ``where`` the prefix of a message about a data row (``file:line``)."""
+    messages (a ``range`` when the rows are consecutive lines); ``where`` the prefix of a message about a data row (``file:line``)."""
 
     path: Path
     fmt: str
     columns: list[Column]
-    row_lines: np.ndarray
+    row_lines: np.ndarray | range
     header_line: int | None = None
     has_header: bool = True
     notes: list[str] = field(default_factory=list)

@@ -15,6 +15,12 @@ Contract of :func:`read_text`:
 * a decimal comma (``1,5``) is recognised when the delimiter is not a comma, or forced
   with ``decimal=","``;
 * every data row must have as many cells as the header (up to 20 rows named at once).
+
+The data rows are parsed by pyarrow's CSV reader (blank-separated ones by numpy's
+loadtxt); a file it cannot take as it is - a cell that is not a number, a row of another
+width, comment or blank lines among the data, quotes spanning lines, a text that is not
+UTF-8 - is read again line by line (:func:`_careful`), which names every problem with its
+line, so messages are the same whichever path read the file.
 """
 
 from __future__ import annotations
@@ -38,6 +44,7 @@ DELIMITERS = ("\t", ";", ",", "|", " ")
 _NAMES = {"\t": "tab", ";": "';'", ",": "','", "|": "'|'", " ": "blanks"}
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+(?:[eE][+-]?\d+)?$")
 _CHUNK = 200_000
+_COMMENT_LINE = re.compile(rb"(?:^|\n)[ \t]*(?:#|%|//)")
 
 
 def is_comment(line: str) -> bool:
@@ -75,17 +82,32 @@ def choose_delimiter(sample: list[str]) -> str:
     return best
 
 
-def decode(path: Path) -> tuple[str, list[str]]:
-    """(text, notes) of a text file: UTF-8, else Windows-1252 (said so)."""
+def _raw(path: Path) -> bytes:
     try:
         raw = read_bytes_file(path, "data file", MAX_TEXT_BYTES)
     except DocumentError as exc:
         raise ImportFileError(str(exc)) from None
+    return raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
+
+
+def decode(raw: bytes) -> tuple[str, list[str], bool]:
+    """(text, notes, is UTF-8) of a text file's bytes: UTF-8, else Windows-1252 (said so)."""
     try:
-        return raw.decode("utf-8-sig"), []
+        return raw.decode("utf-8"), [], True
     except UnicodeDecodeError as exc:
         return raw.decode("cp1252", errors="replace"), [
-            f"not UTF-8 (byte 0x{raw[exc.start]:02X} at offset {exc.start}): read as Windows-1252"]
+            f"not UTF-8 (byte 0x{raw[exc.start]:02X} at offset {exc.start}): read as Windows-1252"], False
+
+
+def _head(raw: bytes, limit: int) -> str:
+    """The start of an ASCII file, long enough to hold ``limit`` content lines (or all of it)."""
+    size = 1 << 16
+    while True:
+        text = raw[:size].decode("ascii")
+        lines = text.split("\n")
+        if size >= len(raw) or sum(1 for ln in lines[:-1] if ln.strip() and not is_comment(ln)) >= limit:
+            return text if size >= len(raw) else text[:len(text) - len(lines[-1])]
+        size *= 4
 
 
 def layout(records: list[tuple[int, list[str]]], no_header: bool, decimal_comma: bool,
@@ -111,40 +133,83 @@ def layout(records: list[tuple[int, list[str]]], no_header: bool, decimal_comma:
     return first + 1, [c.strip() for c in cells], width, notes
 
 
-def _fast(data: str, delim: str, decimal_comma: bool, width: int, cols: list[int]) -> np.ndarray | None:
-    """The numeric columns ``cols`` of the data lines parsed in one C pass (numpy's loadtxt), or None
-    when the text needs the careful path: quotes, comment or blank lines, rows of another width, a
-    cell that is not a number (the careful path then names each one)."""
-    body = data.rstrip("\n")
-    if not cols or '"' in body or "\n\n" in body or body[:1] in "#%/ \t" or any(
-            f"\n{c}" in body for c in ("#", "%", "//", " ", "\t")):
-        return None  # quotes, blank, comment or indented lines: the careful path
-    n_lines = data.count("\n") + (0 if data.endswith("\n") else 1)
-    if delim == " " and len(cols) != width:
-        return None  # blank-separated: loadtxt checks every row's width only when it reads every column
-    if delim != " ":
-        if data.count(delim) != n_lines * (width - 1):
-            return None
-        for _ in range(2):  # empty cells are NaN: ",," -> ",nan,", also at the start and end of a line
-            if delim + delim in data:
-                data = data.replace(delim + delim, f"{delim}nan{delim}")
-        if "\n" + delim in data:
-            data = data.replace("\n" + delim, f"\nnan{delim}")
-        if delim + "\n" in data:
-            data = data.replace(delim + "\n", f"{delim}nan\n")
-        if data.startswith(delim):
-            data = "nan" + data
-        if data.endswith(delim):
-            data += "nan"
-    if decimal_comma:
-        data = data.replace(",", ".")
+def _comment_lines(raw: bytes, start: int) -> bool:
+    """Whether a line from byte ``start`` on is a comment (``#``, ``%``, ``//``, maybe indented); fast
+    byte searches first, the regular expression only for a file with indented lines."""
+    if raw.startswith((b"#", b"%", b"//"), start) or any(raw.find(s, start) >= 0 for s in (b"\n#", b"\n%", b"\n//")):
+        return True
+    indented = raw.find(b"\n ", start) >= 0 or raw.find(b"\n\t", start) >= 0 or raw.startswith((b" ", b"\t"), start)
+    return indented and _COMMENT_LINE.search(raw, start) is not None
+
+
+def _arrow(raw: bytes, start: int, delim: str, decimal_comma: bool, width: int,
+           cols: list[int]) -> list[np.ndarray] | None:
+    """The numeric columns ``cols`` of the data lines (``raw`` from byte ``start``) parsed by pyarrow's CSV
+    reader, or None when the
+    text needs the careful path (module contract): pyarrow refused it (a comment line among the data
+    fails a number column's conversion), or it holds blank lines, which pyarrow reads as rows of empty
+    cells where the careful path skips them."""
+    import pyarrow as pa
+    import pyarrow.csv as pc
+
+    body = memoryview(raw)[start:]
+    if not cols or not body or bytes(body[:1 << 16]).isspace() and bytes(body).isspace():
+        return None
+    if len(cols) < width and _comment_lines(raw, start):
+        return None  # a comment line fails a number column's conversion, but not when only others are read
+    names = [f"c{i}" for i in range(width)]
     try:
-        out = np.loadtxt(io.StringIO(data), delimiter=None if delim == " " else delim,
-                         usecols=None if delim == " " else cols, ndmin=2,
-                         comments=None, dtype=np.float64, quotechar=None)
+        table = pc.read_csv(
+            pa.py_buffer(body),
+            read_options=pc.ReadOptions(column_names=names, use_threads=False, block_size=len(body) + 1),
+            parse_options=pc.ParseOptions(delimiter=delim, quote_char='"', double_quote=True,
+                                          newlines_in_values=False, ignore_empty_lines=False),
+            convert_options=pc.ConvertOptions(column_types={names[i]: pa.float64() for i in cols},
+                                              include_columns=[names[i] for i in cols], null_values=[""],
+                                              strings_can_be_null=True, quoted_strings_can_be_null=True,
+                                              decimal_point="," if decimal_comma else "."))
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError, ValueError):
+        return None   # the careful path names what pyarrow refused
+    out = []
+    for name in [names[i] for i in cols]:
+        out.append(_floats(table.column(name)))
+        table = table.drop_columns([name])  # each column's Arrow buffers go as soon as numpy holds them
+    if out and all(np.isnan(a).any() for a in out) and np.logical_and.reduce([np.isnan(a) for a in out]).any():
+        return None  # a row empty in every column: a blank line, which the careful path skips with its number
+    return out
+
+
+def _floats(col: "pa.ChunkedArray") -> np.ndarray:  # noqa: F821
+    """A float64 Arrow column as numpy, nulls as NaN, read from its buffers (Array.to_numpy would import pandas)."""
+    if col.num_chunks == 1 and col.null_count == 0:   # one block (the whole body): numpy views its buffer
+        ch = col.chunk(0)
+        return np.frombuffer(ch.buffers()[1], np.float64, count=len(ch), offset=ch.offset * 8)
+    out = np.empty(len(col), np.float64)
+    pos = 0
+    for ch in col.chunks:
+        k = len(ch)
+        validity, values = ch.buffers()[:2]
+        out[pos:pos + k] = np.frombuffer(values, np.float64, count=k, offset=ch.offset * 8)
+        if ch.null_count:
+            bits = np.unpackbits(np.frombuffer(validity, np.uint8), bitorder="little")[ch.offset:ch.offset + k]
+            out[pos:pos + k][bits == 0] = np.nan
+        pos += k
+    return out
+
+
+def _blank_separated(data: str, width: int) -> np.ndarray | None:
+    """Blank-separated data lines parsed in one C pass (numpy's loadtxt), or None for the careful path
+    (comment, blank or indented lines, rows of another width, a cell that is not a number)."""
+    body = data.rstrip("\n")
+    if not body.strip() or body[:1] in "#%/ \t" or "\n\n" in body or any(
+            f"\n{c}" in body for c in ("#", "%", "//", " ", "\t")):
+        return None
+    n_lines = body.count("\n") + 1
+    try:
+        out = np.loadtxt(io.StringIO(body), delimiter=None, ndmin=2, comments=None, dtype=np.float64, quotechar=None)
     except ValueError:
         return None
-    return out if len(out) == n_lines else None
+    return out if len(out) == n_lines and out.shape[1] == width else None
 
 
 def _lines(text: str, limit: int) -> tuple[list[str], list[int]]:
@@ -166,9 +231,13 @@ def _lines(text: str, limit: int) -> tuple[list[str], list[int]]:
 def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
               decimal: str | None = None) -> SourceTable:
     """Read a delimited text file (module contract) into a :class:`SourceTable`."""
-    text, notes = decode(path)
-    if "\r" in text:
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    raw = _raw(path)
+    if b"\r" in raw and raw.count(b"\r") != raw.count(b"\r\n"):  # bare CRs end lines too (old Mac files)
+        raw = raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if raw.isascii():  # the common case: only the head is decoded; the data rows go to pyarrow as bytes
+        text, notes, utf8 = _head(raw, 40), [], True
+    else:
+        text, notes, utf8 = decode(raw)
     head, offsets = _lines(text, 40)
     content = [i for i, line in enumerate(head) if line.strip() and not is_comment(line)]
     sample = [head[i] for i in content]
@@ -192,24 +261,38 @@ def read_text(path: Path, no_header: bool = False, delimiter: str | None = None,
     start = records[first][0] - 1 if first < len(records) else len(head)
     header_line = records[first - 1][0] if header is not None else None
     names = header if header is not None else [""] * width
-    data = text[offsets[start]:] if start < len(offsets) else ""
-    del text
+    at = offsets[start] if start < len(offsets) else len(text)
     # columns whose first cells are numbers take the fast path; the others keep their first bad cells
     probe = [c for _, c in records[first:] if len(c) == width]
     numeric = [i for i in range(width) if all(_is_number(c[i], decimal_comma) or not c[i].strip() for c in probe)]
-    fast = _fast(data, delim, decimal_comma, width, numeric) if data.strip() else None
+    fast: list[np.ndarray] | None = None
+    if delim == " ":
+        if raw.isascii():
+            text, _, _ = decode(raw)
+        data = text[at:]
+        block = _blank_separated(data, width) if len(numeric) == width else None
+        fast = [block[:, i] for i in range(width)] if block is not None else None
+    elif utf8:
+        fast = _arrow(raw, len(text[:at].encode("utf-8")), delim, decimal_comma, width, numeric)
     if fast is not None:
-        n = len(fast)
+        n = len(fast[0])
         columns = []
         for i in range(width):
             if i in numeric:
-                columns.append(Column(names[i], fast[:, numeric.index(i)]))
+                columns.append(Column(names[i], fast[numeric.index(i)]))
             else:
                 vals, bad, n_bad = numbers([c[i] for c in probe])
                 columns.append(Column(names[i], np.full(n, np.nan), bad, max(n_bad, 1)))
-        return SourceTable(path, "text", columns, np.arange(start + 1, start + 1 + n), header_line,
+        return SourceTable(path, "text", columns, range(start + 1, start + 1 + n), header_line,
                            header is not None, notes)
-    return _careful(path, data.splitlines(), start, split, width, names, header is not None, header_line,
+    if raw.isascii() and delim != " ":
+        text, _, _ = decode(raw)
+    del raw
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+        head, offsets = _lines(text, 40)
+        at = offsets[start] if start < len(offsets) else len(text)
+    return _careful(path, text[at:].splitlines(), start, split, width, names, header is not None, header_line,
                     decimal_comma, notes)
 
 

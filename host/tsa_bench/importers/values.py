@@ -26,20 +26,24 @@ def converted(table: SourceTable, chosen: list[Choice]) -> dict[str, np.ndarray]
         what = f"column {table.label(c.index)} ({c.target})"
         for k, cell in col.bad:
             errors.append(f"{table.where(k)}: {what}: cannot parse '{cell}' as a number")
+        if col.bad and c.target == "t":
+            errors.append(f"{table.where()}: {what}: t must be a number of seconds (a date or clock time cannot "
+                          "be t: export elapsed seconds, or give --sample-period)")
         v = col.values
         dtype = SAMPLE_COLUMNS[c.target][0] if c.target in SAMPLE_COLUMNS else "f8"
         integer = dtype[0] in "iu"
-        bad = np.zeros(len(v), bool)
-        for k in col.bad:
-            bad[k[0]] = True
-        nonfinite = ~np.isfinite(v) & ~bad
-        if c.target == "t" or integer:
-            for k in np.flatnonzero(nonfinite)[:MAX_ERRORS]:
-                errors.append(f"{table.where(int(k))}: {what}: empty or {v[k]!r} where a finite value is required")
-        else:
-            for k in np.flatnonzero(np.isinf(v))[:MAX_ERRORS]:
-                errors.append(f"{table.where(int(k))}: {what}: {v[k]!r} where a finite value is required")
         fin = np.isfinite(v)
+        every = bool(fin.all())   # the common case: one pass decides that nothing below can fire
+        if not every:
+            bad = np.zeros(len(v), bool)
+            for k in col.bad:
+                bad[k[0]] = True
+            if c.target == "t" or integer:
+                for k in np.flatnonzero(~fin & ~bad)[:MAX_ERRORS]:
+                    errors.append(f"{table.where(int(k))}: {what}: empty or {v[k]:g} where a finite value is required")
+            else:
+                for k in np.flatnonzero(np.isinf(v))[:MAX_ERRORS]:
+                    errors.append(f"{table.where(int(k))}: {what}: {v[k]:g} where a finite value is required")
         if integer:
             info = np.iinfo(dtype)
             for k in np.flatnonzero(fin & (v != np.round(v)))[:MAX_ERRORS]:
@@ -47,7 +51,10 @@ def converted(table: SourceTable, chosen: list[Choice]) -> dict[str, np.ndarray]
             for k in np.flatnonzero(fin & ((v < info.min) | (v > info.max)))[:MAX_ERRORS]:
                 errors.append(f"{table.where(int(k))}: {what}: {v[k]:g} does not fit {c.target} ({info.min}..{info.max})")
         w = v * c.factor + c.offset if (c.factor != 1.0 or c.offset != 0.0) else v
-        for k in np.flatnonzero(np.isfinite(w) & (np.abs(w) > MAX_ABS_VALUE))[:MAX_ERRORS]:
+        size = np.abs(w)
+        if every and not size.max(initial=0.0) > MAX_ABS_VALUE:
+            size = None
+        for k in np.flatnonzero(np.isfinite(w) & (size > MAX_ABS_VALUE))[:MAX_ERRORS] if size is not None else ():
             errors.append(f"{table.where(int(k))}: {what}: {v[k]:g} is too large (at most {MAX_ABS_VALUE:g} in magnitude)")
         out[c.target] = w
         if len(errors) >= MAX_ERRORS:

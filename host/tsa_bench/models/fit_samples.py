@@ -3,7 +3,8 @@
 Units: run-file columns in their contract units (turn, V, ohm, mm, s).
 
 Contract: :func:`quasi_static_mask` keeps the samples with the motor stopped in the last
-third of their segment (heater input: only at the twist where the heater was used); a run
+third of their segment (heater input: only at the twist where the heater was used, when the
+run has a twist; a run without one has only its heater segments); a run
 without segments (:func:`uses_whole_run`) is used whole. A missing, non-numeric or empty
 column raises :class:`FitError` naming the file. :mod:`tsa_bench.models.fitting` and
 :mod:`tsa_bench.models.twist_heat` both read runs through these.
@@ -38,7 +39,8 @@ def uses_whole_run(run: RunData) -> bool:
 
 
 def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
-    """Motor stopped and in the last third of its segment; heater input: only at the heating twist.
+    """Motor stopped and in the last third of its segment; heater input: only at the heating twist
+    (a run without twist, all NaN, has only its heater segments).
 
     A run without segments (:func:`uses_whole_run`) is used whole.
     """
@@ -64,9 +66,10 @@ def quasi_static_mask(run: RunData, input_col: str) -> np.ndarray:
         mask[idx[t[idx] >= threshold]] = True
     if input_col == "heater_voltage":
         volts = _column(run, "heater_voltage")
-        turns = _column(run, "turns")
         if not np.nanmax(volts) > 0:
             raise FitError(f"{run.path}: heater_voltage is never above 0 V; nothing to fit against it")
-        heating_twist = turns[int(np.nanargmax(volts))]
-        mask &= np.abs(turns - heating_twist) < 1e-6
+        turns = np.asarray(run.samples["turns"], float) if "turns" in run.samples else np.full(len(t), np.nan)
+        if np.isfinite(turns).any():  # a run without twist (an SMA, a heated string alone) is all at one twist
+            heating_twist = turns[int(np.nanargmax(volts))]
+            mask &= np.abs(turns - heating_twist) < 1e-6
     return mask

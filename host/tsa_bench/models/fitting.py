@@ -13,7 +13,8 @@ Contract:
   segments (an import) has no holds to pick from, so its whole run is used
   (:func:`uses_whole_run`). Optionally only samples at one declared load
   (:func:`load_mask`); the Preisach relays are driven by the whole input history of each run.
-* :func:`fit_notes` says what a user should know about a fit: runs used whole for lack
+* :func:`fit_notes` says what a user should know about a fit: an output near zero (percent
+  errors not meaningful), runs used whole for lack
   of segments, several loads mixed in one model, a measured force (the ``force`` channel)
   that is not a declared load (:func:`measured_force_note`), more parameters than a tenth of the
   samples they were fitted on.
@@ -60,15 +61,26 @@ def load_mask(run: RunData, load_g: float | None) -> np.ndarray:
     """Samples taken at the declared load ``load_g`` (within 0.5 g); all when None."""
     if load_g is None:
         return np.ones(len(run), bool)
-    if "load" not in run.samples:
-        raise FitError(f"{run.path}: no 'load' column to select {load_g:g} g by")
+    if "load" not in run.samples or not np.isfinite(np.asarray(run.samples["load"], float)).any():
+        if "force" in run.samples:
+            raise FitError(f"{run.path}: this run declares no load to select {load_g:g} g by; its measured force "
+                           "(the 'force' column) is not a declared load: model it with --input/--output force")
+        raise FitError(f"{run.path}: this run declares no load to select {load_g:g} g by (its load column is "
+                       "empty); declare it at import (tsa-bench import --load-g G) or fit without --load-g")
     mask = np.abs(np.asarray(run.samples["load"], float) / G_N_PER_G - load_g) < 0.5
     if not mask.any():
-        if not loads_g(run) and "force" in run.samples:
-            raise FitError(f"{run.path}: no declared load to select {load_g:g} g by; its measured force (the "
-                           "'force' column) is not a declared load: model it with --input/--output force")
-        raise FitError(f"{run.path}: no samples at a load of {load_g:g} g (loads: {', '.join(f'{g:g} g' for g in loads_g(run))})")
+        raise FitError(f"{run.path}: no samples at a load of {load_g:g} g (loads: {_listed(loads_g(run), 'g')})")
     return mask
+
+
+def _listed(values: list[float], unit: str, each: bool = True, most: int = 8) -> str:
+    """``100 g, 110 g, ... 390 g (30 in all)`` (or with ``each`` False ``100, 110, ... 390 g (30 in all)``):
+    a list short enough for one line."""
+    shown = [f"{v:g}" + (f" {unit}" if each else "") for v in values]
+    if len(values) > most:
+        shown = shown[:most - 1] + [f"... {shown[-1]}"]
+    text = ", ".join(shown) + ("" if each else f" {unit}")
+    return text + (f" ({len(values):,} in all)" if len(values) > most else "")
 
 
 def measured_force_note(run: RunData) -> str | None:
@@ -299,6 +311,20 @@ def parameter_count(saved: SavedModel) -> int:
     return n
 
 
+def _percent_note(run: RunData, col: str, mask: np.ndarray) -> str | None:
+    """A caution when the output comes near zero: percent errors (eq. 3.21) divide by it and mean nothing."""
+    y = np.asarray(run.samples[col], float)[mask]
+    y = y[np.isfinite(y)]
+    if len(y) < 2:
+        return None
+    near = np.min(np.abs(y)) < 0.01 * np.max(np.abs(y)) or (y.min() < 0 < y.max())
+    if not near:
+        return None
+    return (f"{run.path}: {col} comes near zero ({y.min():.4g} to {y.max():.4g}): the percent errors (3.21) divide "
+            "by it and are not meaningful here; read E_aver and sigma"
+            + (" (a displacement is not a length: tsa-bench import --offset length=L0)" if col == "length" else ""))
+
+
 def fit_notes(saved: SavedModel, runs: list[RunData]) -> list[str]:
     """What the user should know about a fit (module contract), one sentence each."""
     notes = []
@@ -323,8 +349,11 @@ def fit_notes(saved: SavedModel, runs: list[RunData]) -> list[str]:
         elif load_g is None and not uses_whole_run(r):
             loads = loads_g(r, quasi_static_mask(r, io_in))
             if len(loads) > 1:
-                notes.append(f"{r.path} holds samples at {len(loads)} loads ({', '.join(f'{g:g}' for g in loads)} g); "
+                notes.append(f"{r.path} holds samples at {len(loads):,} loads ({_listed(loads, 'g', each=False)}); "
                              "one model was fitted across them. The thesis fits one per load: --load-g")
+        note = _percent_note(r, saved.output["column"], mask)
+        if note:
+            notes.append(note)
     k = parameter_count(saved)
     if n_fit and k > n_fit / 10:
         notes.append(f"the {saved.model} model has {k} parameters for {n_fit} fitted samples (more than a tenth "

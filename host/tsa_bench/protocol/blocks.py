@@ -18,8 +18,10 @@ sample without a resistance word says ``resistance_not_measured`` with
 
 :func:`sampling_refusal` is the device's check of a SET_SAMPLING period (the
 simulated device and the firmware apply the same rule, firmware/config.h mirrors
-the constants): shorter than one ADS1115 conversion -> ``too_fast_for_sensor``;
-sample frames needing more than ``LINE_BUDGET`` of the line -> ``too_fast_for_line``.
+the constants): shorter than one ADS1115 conversion -> ``too_fast_for_sensor``; below
+``SINGLE_SHOT_MIN_PERIOD_US`` not a whole number of conversions (1163 or 2326 us) ->
+``between_conversions`` (never rounded); sample frames needing more than
+``LINE_BUDGET`` of the line -> ``too_fast_for_line``.
 """
 
 from __future__ import annotations
@@ -66,6 +68,11 @@ def conversions_per_sample(period_us: int) -> int:
     return max(1, period_us // ADS1115_CONVERSION_US)
 
 
+def continuous_periods_us() -> list[int]:
+    """The periods the continuous sampler keeps: whole conversions below the single-shot minimum."""
+    return list(range(ADS1115_CONVERSION_US, SINGLE_SHOT_MIN_PERIOD_US, ADS1115_CONVERSION_US))
+
+
 def sample_line_bytes_per_s(period_us: int) -> float:
     """Line use of the sample frames at a sampling period (bytes/s)."""
     if period_us <= 0:
@@ -84,6 +91,8 @@ def sampling_refusal(period_us: int, baud: int) -> tuple[int, str] | None:
         return (int(msg.Status.TOO_FAST_FOR_SENSOR),
                 f"{period_us} us is shorter than one ADS1115 conversion ({ADS1115_CONVERSION_US} us at "
                 f"{ADS1115_SPS} samples/s)")
+    if period_us < SINGLE_SHOT_MIN_PERIOD_US and period_us % ADS1115_CONVERSION_US:
+        return (int(msg.Status.BETWEEN_CONVERSIONS), _between(period_us))
     need = sample_line_bytes_per_s(period_us)
     have = LINE_BUDGET * baud / BITS_PER_BYTE
     if need > have:
@@ -91,6 +100,13 @@ def sampling_refusal(period_us: int, baud: int) -> tuple[int, str] | None:
                 f"samples every {period_us} us need {need:,.0f} bytes/s, more than {LINE_BUDGET:.0%} of the "
                 f"{baud} baud line ({have:,.0f} bytes/s)")
     return None
+
+
+def _between(period_us: int) -> str:
+    kept = " or ".join(f"{p} us" for p in continuous_periods_us())
+    return (f"{period_us} us is not a whole number of ADS1115 conversions; below "
+            f"{SINGLE_SHOT_MIN_PERIOD_US} us the device samples every conversion or every other one: use {kept}, "
+            f"or {SINGLE_SHOT_MIN_PERIOD_US} us and up")
 
 
 def refusal_reason(command: object, status: int, baud: int | None = None) -> str:
@@ -101,6 +117,8 @@ def refusal_reason(command: object, status: int, baud: int | None = None) -> str
     if status == msg.Status.TOO_FAST_FOR_SENSOR:
         return (f" ({p} us is shorter than one ADS1115 conversion, {ADS1115_CONVERSION_US} us at "
                 f"{ADS1115_SPS} samples/s: use a longer sampling period)")
+    if status == msg.Status.BETWEEN_CONVERSIONS:
+        return f" ({_between(p)})"
     if status == msg.Status.TOO_FAST_FOR_LINE:
         line = f" at {baud} baud" if baud else ""
         return (f" (samples every {p} us need {sample_line_bytes_per_s(p):,.0f} bytes/s, more than the serial "

@@ -11,7 +11,7 @@ from enum import IntEnum, IntFlag
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 1
-CATALOGUE_HASH = 0xF417839F
+CATALOGUE_HASH = 0x1F96DBC9
 MAX_PAYLOAD = 64
 
 
@@ -27,6 +27,7 @@ class Status(IntEnum):
     BAD_LENGTH = 6
     TOO_FAST_FOR_SENSOR = 7
     TOO_FAST_FOR_LINE = 8
+    BETWEEN_CONVERSIONS = 9
 
 
 class EventKind(IntEnum):
@@ -42,6 +43,8 @@ class EventKind(IntEnum):
     STEP_UNDERRUN = 8
     I2C_RECOVERED = 9
     MOTOR_RELEASED = 10
+    SENSOR_RESTARTED = 11
+    POSITION_SUSPECT = 12
 
 
 class Fault(IntEnum):
@@ -94,6 +97,7 @@ class DeviceState(IntFlag):
     POSITION_UNKNOWN = 1
     MOTOR_RELEASED = 2
     STOPPING = 4
+    POSITION_SUSPECT = 8
 
 
 class Hello(NamedTuple):
@@ -138,6 +142,11 @@ class SetPosition(NamedTuple):
     """
 
     position_steps: int
+
+
+class ArmReset(NamedTuple):
+    """ARM_RESET (0x07, host -> device): The host is about to close the port and open it again on purpose (opening a Mega's port resets it through DTR) - the position recorded now may be kept across the next reset, once, if the motor stays energized through it and the firmware's configuration is the same. Without it a reset leaves the position unknown. Refused with bad_state while the position is unknown, a move runs or waits, or the motor is stopping or released; a later move disarms it.
+    """
 
 
 class MoveTo(NamedTuple):
@@ -328,6 +337,9 @@ class QueueStatus(NamedTuple):
     uart_overruns (u16): bytes the UART lost since boot - receiver overrun (DOR) plus receive ring full (saturates)
     uart_frame_errors (u16): bytes received with a framing error since boot (saturates)
     i2c_recoveries (u16): I2C bus recoveries since boot (saturates)
+    max_pass_us (u16 [us]): longest main-loop pass since the previous QUEUE_STATUS (saturates; the step ring holds 10 ms of steps ahead)
+    sensor_period_ns (u32 [ns]): continuous sampling - the ADS1115's conversion period measured between ALERT/RDY edges since it was last set up (0 when not sampling continuously)
+    sensor_restarts (u16): continuous sampling - times the ADS1115 was set up again since boot (saturates)
     """
 
     t_us: int
@@ -341,6 +353,9 @@ class QueueStatus(NamedTuple):
     uart_overruns: int
     uart_frame_errors: int
     i2c_recoveries: int
+    max_pass_us: int
+    sensor_period_ns: int
+    sensor_restarts: int
 
 
 class SampleBlockEntry(NamedTuple):
@@ -362,8 +377,8 @@ class SampleBlock(NamedTuple):
     """SAMPLE_BLOCK (0x86, device -> host): Up to six consecutive samples of the continuous sampler (periods below the single-shot minimum) in one frame - the first in full, each next one as a delta; at most one CS5513 word per block (resistance is converted at the CS5513's own rate, slower than the samples).
 
     counter (u32): counter of the first sample; the others follow on (counter + 1 ...)
-    t_us (u64 [us]): device time at which the first sample's position conversion started
-    step_position (i32 [step]): motor position at the first sample
+    t_us (u64 [us]): device time at which the first sample's position conversion started - the ALERT/RDY edge that ended the conversion before it
+    step_position (i32 [step]): motor position at the first sample's t_us (captured with it)
     position_raw (i16 [count]): ADS1115 conversion of the first sample
     flags (u8): sample_flags of the first sample plus the flags of the block's resistance word
     heater_mV (u16 [mV]): heater equivalent voltage applied (the same for every sample of the block)
@@ -412,6 +427,7 @@ MESSAGES: dict[int, MessageSpec] = {
     0x04: MessageSpec('CLEAR_QUEUE', 0x04, 'host', False, ClearQueue, struct.Struct('<'), {}),
     0x05: MessageSpec('SIM_SET_LOAD', 0x05, 'host', False, SimSetLoad, struct.Struct('<I'), {'load_mg': 'mg'}),
     0x06: MessageSpec('SET_POSITION', 0x06, 'host', False, SetPosition, struct.Struct('<i'), {'position_steps': 'step'}),
+    0x07: MessageSpec('ARM_RESET', 0x07, 'host', False, ArmReset, struct.Struct('<'), {}),
     0x10: MessageSpec('MOVE_TO', 0x10, 'host', True, MoveTo, struct.Struct('<HiII'), {'target_steps': 'step', 'rate_steps_per_s': 'step/s', 'accel_steps_per_s2': 'step/s^2'}),
     0x11: MessageSpec('MOVE_BY', 0x11, 'host', True, MoveBy, struct.Struct('<HiII'), {'delta_steps': 'step', 'rate_steps_per_s': 'step/s', 'accel_steps_per_s2': 'step/s^2'}),
     0x12: MessageSpec('DWELL', 0x12, 'host', True, Dwell, struct.Struct('<HI'), {'duration_us': 'us'}),
@@ -422,7 +438,7 @@ MESSAGES: dict[int, MessageSpec] = {
     0x82: MessageSpec('ACK', 0x82, 'device', False, Ack, struct.Struct('<HBBB'), {}),
     0x83: MessageSpec('SAMPLE', 0x83, 'device', False, Sample, struct.Struct('<IQihiBHBH'), {'t_us': 'us', 'step_position': 'step', 'position_raw': 'count', 'resistance_raw': 'count', 'heater_mV': 'mV'}),
     0x84: MessageSpec('EVENT', 0x84, 'device', False, Event, struct.Struct('<QBHHi'), {'t_us': 'us'}),
-    0x85: MessageSpec('QUEUE_STATUS', 0x85, 'device', False, QueueStatus, struct.Struct('<QBBHHBiHHHH'), {'t_us': 'us', 'step_position': 'step'}),
+    0x85: MessageSpec('QUEUE_STATUS', 0x85, 'device', False, QueueStatus, struct.Struct('<QBBHHBiHHHHHIH'), {'t_us': 'us', 'step_position': 'step', 'max_pass_us': 'us', 'sensor_period_ns': 'ns'}),
     0x86: MessageSpec('SAMPLE_BLOCK', 0x86, 'device', False, SampleBlock, struct.Struct('<IQihBHHBiB'), {'t_us': 'us', 'step_position': 'step', 'position_raw': 'count', 'heater_mV': 'mV', 'resistance_raw': 'count'}, struct.Struct('<HhhB'), SampleBlockEntry, 5, 9),
 }
 

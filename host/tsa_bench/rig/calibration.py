@@ -13,7 +13,8 @@ counts do not spread (a sensor that did not change between them) or a result the
 file could not hold. :func:`acquire` takes the points on a connected rig: optionally
 moving to each of ``at_turns`` first (the position sensor then sees the TSA at several
 lengths; back to the starting twist at the end), then reading the counts and asking
-for the reference value.
+for the reference value. The device samples only while a point is measured: while a
+person reads a ruler it is idle, so no watchdog trips however long that takes.
 """
 
 from __future__ import annotations
@@ -155,26 +156,40 @@ def parse_reference(text: str, unit: str) -> float | None:
 
 def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequence[float] = (),
             seconds: float = 1.0, rate_turns_per_s: float = 1.0, accel_turns_per_s2: float = 10.0,
-            say: Callable[[str], None] = print) -> tuple[list[float], list[float], float]:
+            say: Callable[[str], None] = print,
+            kept: list[tuple[float, float]] | None = None) -> tuple[list[float], list[float], float]:
     """Take calibration points on a connected :class:`~tsa_bench.rig.link.RigLink` (module contract):
-    (mean counts, reference values, the largest standard error of a point's mean counts)."""
+    (mean counts, reference values, the largest standard error of a point's mean counts).
+    Each point is also appended to ``kept`` (counts, reference) the moment it is complete,
+    so a caller still has the points when the rig fails later (an exception from here)."""
     unit = "mm" if quantity == "position" else "ohm"
     what = "ruler length" if quantity == "position" else "reference resistance"
     counts: list[float] = []
     refs: list[float] = []
+    kept = [] if kept is None else kept
     error = 0.0
     period_s = min(0.1, max(0.01, seconds / 10))
-    link.set_sampling(period_s)
-    start_turns = link.samples(2 * period_s)[-1].step_position / link.steps_per_turn
+
+    def measure(sampling: bool = False) -> tuple[float, float]:
+        # sampling while the rig moves and measures (the samples keep the link's clock
+        # going), off while a person reads the ruler: the device is idle then, so its
+        # watchdog cannot trip however long the reading takes
+        if not sampling:
+            link.set_sampling(period_s)
+        got = link.samples(seconds)
+        link.set_sampling(0)
+        return mean_counts(got, quantity)
+
+    start_turns = link.status().step_position / link.steps_per_turn
     try:
         targets = list(at_turns) if at_turns else [None] * 10_000
         for i, turns in enumerate(targets):
             if turns is not None:
                 say(f"point {i + 1}: moving to {turns:g} turns")
+                link.set_sampling(period_s)
                 link.move_to(turns, rate_turns_per_s, accel_turns_per_s2)
                 link.wait_idle(600.0)
-                got = link.samples(seconds)
-                c, se = mean_counts(got, quantity)
+                c, se = measure(sampling=True)
                 value = parse_reference(ask(f"{what} now ({unit}): "), unit)
                 if value is None:
                     break
@@ -183,13 +198,15 @@ def acquire(link, quantity: str, ask: Callable[[str], str], *, at_turns: Sequenc
                                             "Enter alone when done: "), unit)
                 if value is None:
                     break
-                c, se = mean_counts(link.samples(seconds), quantity)
+                c, se = measure()
             say(f"point {i + 1}: {c:.2f} counts = {value:g} {unit}")
             counts.append(c)
             refs.append(value)
+            kept.append((c, value))
             error = max(error, se)
     finally:
         if at_turns:
+            link.set_sampling(period_s)
             link.move_to(start_turns, rate_turns_per_s, accel_turns_per_s2)
             link.wait_idle(600.0)
         link.set_sampling(0)
@@ -206,3 +223,8 @@ def fit_for(quantity: str, counts: Sequence[float], refs: Sequence[float], bench
     if quantity == "position":
         return fit_position(counts, refs, count_error)
     return fit_resistance(counts, refs, bench.resistance.ohm_per_count, count_error)
+
+
+def points_text(points: Sequence[tuple[float, float]]) -> str:
+    """The points as ``--points`` takes them (counts=reference, ...), re-fitted without the rig."""
+    return ",".join(f"{c:.6g}={r:.10g}" for c, r in points)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tsa_bench.device.faults import latched_text
 from tsa_bench.protocol import msg
 from tsa_bench.rig.link import RigLink
 
@@ -49,6 +50,11 @@ class CheckReport:
     length: SensorStats
     resistance: SensorStats
     flags: dict[str, int]
+
+    @property
+    def position_unknown(self) -> bool:
+        """The device does not know the motor's step position (no twist zero declared)."""
+        return bool(self.status.state & msg.DeviceState.POSITION_UNKNOWN)
 
 
 def _stats(name: str, unit: str, raw: np.ndarray, value: np.ndarray) -> SensorStats:
@@ -84,12 +90,19 @@ def check_rig(link: RigLink, duration_s: float = 2.0, period_s: float = 0.1,
                        counts)
 
 
-def findings(report: CheckReport, position_range_mm: tuple[float, float] | None = None) -> list[str]:
-    """What a person should look at (empty: the rig looks sound)."""
+def findings(report: CheckReport, position_range_mm: tuple[float, float] | None = None,
+             cleared: msg.QueueStatus | None = None) -> list[str]:
+    """What a person should look at (empty: the rig looks sound); ``cleared`` is the status
+    that showed a fault latched before the check and cleared since."""
     out = []
+    if cleared is not None:
+        out.append(f"{latched_text(cleared, report.identity)} (cleared before the check read the sensors)")
     if report.status.fault:
-        out.append(f"a fault is latched: {msg.Fault(report.status.fault).name.lower()} "
-                   "(STOP and CLEAR_QUEUE clear it once its cause is gone; a run clears it at start)")
+        out.append(latched_text(report.status, report.identity))
+    if report.position_unknown:
+        out.append("the device does not know the motor's position (it powered up, reset while moving, or released "
+                   "the motor): moves are refused until the twist zero is declared; hang the TSA untwisted and "
+                   "run `tsa-bench zero` (or `tsa-bench zero --turns N`)")
     for s, what in ((report.length, "the position sensor (ADS1115 on I2C)"),
                     (report.resistance, "the resistance converter (CS5513, sense current)")):
         if s.valid == 0:

@@ -24,6 +24,7 @@ from typing import NamedTuple
 
 from tsa_bench.benchdata import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
+from tsa_bench.device.faults import CLEARS, RECOVERY, fault_name, latched_text
 from tsa_bench.protocol import msg
 from tsa_bench.runner.commands import NO_SEGMENT
 
@@ -44,6 +45,7 @@ class RigLink:
     now_us: int = 0
     fault: int = 0
     last_status: msg.QueueStatus | None = None
+    cleared: msg.QueueStatus | None = None   # the status that showed a fault :meth:`clear_fault` cleared
     _last_beat_wall: float = field(default_factory=time.monotonic)
     _last_beat_us: int = 0
 
@@ -107,6 +109,22 @@ class RigLink:
                 raise RigError(f"the device on {self.port_name} did not report its status")
         return self.last_status
 
+    def clear_fault(self, say: Callable[[str], None]) -> msg.QueueStatus | None:
+        """A fault latched before this command: ``say`` what it is, then CLEAR_QUEUE.
+        Returns the status that showed it (None: no fault was latched); RigError when
+        the fault stays (its cause is still there)."""
+        status = self.status()
+        if not status.fault:
+            return None
+        say(f"{latched_text(status, self.identity)}. Clearing it now (CLEAR_QUEUE).")
+        self.cleared = status
+        self.client.command(msg.ClearQueue(), check=False)
+        after = self.status()
+        if after.fault:
+            raise RigError(f"the device keeps fault {fault_name(after.fault)} latched after CLEAR_QUEUE: its "
+                           f"cause is still there; {RECOVERY.get(fault_name(after.fault), '')}")
+        return status
+
     def position_known(self) -> bool:
         """Whether the device knows the motor's step position (no ``position_unknown`` bit)."""
         return not self.status().state & msg.DeviceState.POSITION_UNKNOWN
@@ -148,8 +166,10 @@ class RigLink:
         if ack.status != msg.Status.OK:
             reason = msg.Status(ack.status).name.lower()
             hint = ""
-            if ack.status == msg.Status.BAD_STATE:
-                hint = " (a fault is latched, or the device does not know its position yet: tsa-bench zero)"
+            if ack.status == msg.Status.BAD_STATE and self.fault:
+                hint = f" (device fault {fault_name(self.fault)} latched; {CLEARS})"
+            elif ack.status == msg.Status.BAD_STATE:
+                hint = " (the device does not know its position yet: tsa-bench zero)"
             raise RigError(f"the device refused {what}: {reason}{hint}")
         for m in self.client.poll():  # what the device said before this command: not about it
             self._seen(m)
@@ -178,7 +198,8 @@ class RigLink:
                 if isinstance(m, msg.Event) and m.kind == msg.EventKind.QUEUE_EMPTY:
                     return True
             if self.fault:
-                raise RigError(f"device fault: {msg.Fault(self.fault).name.lower()}")
+                raise RigError(f"device fault {fault_name(self.fault)}: {RECOVERY.get(fault_name(self.fault), '')}; "
+                               f"{CLEARS}")
             if should_stop is not None and should_stop():
                 return False
             if time.monotonic() > deadline:
@@ -199,7 +220,8 @@ class RigLink:
                     if (m.t_us - start) / 1e6 >= duration_s:
                         return out
             if self.fault:
-                raise RigError(f"device fault: {msg.Fault(self.fault).name.lower()}")
+                raise RigError(f"device fault {fault_name(self.fault)}: {RECOVERY.get(fault_name(self.fault), '')}; "
+                               f"{CLEARS}")
             if time.monotonic() > wall_deadline:
                 raise RigError(f"no samples from the device on {self.port_name} for {duration_s * 3 + 5:g} s")
 
@@ -208,10 +230,12 @@ class RigLink:
         self.client.stop()
 
     def close(self) -> None:
-        """Leave the rig at rest: STOP, sampling off (best effort)."""
+        """Leave the rig at rest: STOP, sampling off, the reset of the next open armed so the
+        position survives it (best effort: refused while the motor still decelerates)."""
         try:
             self.stop()
             self.client.command(msg.SetSampling(NO_SEGMENT, 0), check=False)
+            self.client.arm_reset()
         except DeviceError:
             pass
 

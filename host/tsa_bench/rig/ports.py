@@ -79,6 +79,7 @@ class ProbeResult:
 
 def probe(device: str, bench: BenchConfig, boot_timeout_s: float | None = None) -> ProbeResult:
     """Try the handshake on ``device`` (see the module contract)."""
+    from tsa_bench.device import DeviceError
     from tsa_bench.rig.link import RigError, open_link
 
     try:
@@ -87,5 +88,5 @@ def probe(device: str, bench: BenchConfig, boot_timeout_s: float | None = None) 
             kind = "a simulated device" if link.simulated else "a tsa-bench device"
             return ProbeResult(device, True, f"{kind}, firmware {ident.fw_major}.{ident.fw_minor}.{ident.fw_patch}, "
                                              f"protocol v{ident.protocol_version}, catalogue matches this host")
-    except RigError as exc:
+    except (RigError, DeviceError) as exc:   # a stall mid-handshake too: one line, the next port probed
         return ProbeResult(device, False, str(exc))

@@ -107,6 +107,7 @@ class RunStop:
     samples_lost: int
     segments_done: int
     wall_time_s: float
+    attrs: dict[str, Any] = field(default_factory=dict)   # more root attributes (the clock fits)
 
 
 class RunConsumer(Protocol):

@@ -29,6 +29,22 @@ MAX_DWELL_US = 2**32 - 1      # DWELL.duration_us is a u32
 MAX_LOAD_MG = 2**32 - 1       # SIM_SET_LOAD.load_mg is a u32
 
 
+def plan_segment(wire: int, near: int, n_segments: int) -> int:
+    """The plan segment a device reports as ``wire`` (its index modulo :data:`WIRE_SEGMENTS`),
+    or -1 for :data:`NO_SEGMENT` and for an index that is no segment of the plan.
+
+    Of the plan indices congruent to ``wire``, the one nearest ``near`` (the oldest segment
+    the host has not seen done): the device is always within a queue's length of it, ahead
+    (queued) or just behind (a sample or event of a segment already done reaching the host
+    late, samples while the device idles after its last segment), so the answer never
+    jumps by a wrap of the wire field: a wire index below ``near`` is a segment before it.
+    """
+    if wire == NO_SEGMENT:
+        return -1
+    idx = near + (wire - near + WIRE_SEGMENTS // 2) % WIRE_SEGMENTS - WIRE_SEGMENTS // 2
+    return idx if 0 <= idx < n_segments else -1
+
+
 def dwell_chunks_us(duration_s: float) -> list[int]:
     """A hold split into DWELL durations (us), each <= MAX_DWELL_US, summing to the hold."""
     total = round(duration_s * 1e6)

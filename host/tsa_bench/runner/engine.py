@@ -25,13 +25,21 @@ bring the rig to the state the plan had there (sampling period, twist, heater, l
 
 Pacing (:mod:`tsa_bench.runner.pacing`): when to heartbeat, and where a simulated device
 in this process may deliver in batches (open-loop stretches; the recorded run is the same).
+On a line, a :class:`~tsa_bench.device.keepalive.Keepalive` thread also heartbeats while the
+run's thread is busy (started with the run, stopped on every way out; prompts are waits
+for a person, not stalls).
 Samples are handed over in blocks of exactly ``block_samples`` rows (or what came within
 ``BLOCK_WALL_S`` of wall time), each followed by the documents received after its rows.
 
 Link: samples are stored in counter order, each once: a sample whose counter is not
 after the last stored one (a duplicate or a late frame the link layer let through) is
 dropped and counted (``samples_discarded``), and ``samples_lost`` is exactly the sum of
-the counter gaps in the stored rows.
+the counter gaps in the stored rows. Segment indices: the device's 16-bit index is
+unwrapped to the plan segment nearest the oldest one not done
+(:func:`~tsa_bench.runner.commands.plan_segment`), and every block is checked before a
+consumer gets it: an index outside the plan is stored as -1 and fails the run. A
+QUEUE_EMPTY is recorded as ``queue_underrun`` only when it follows the last command of a
+burst (:mod:`tsa_bench.runner.underrun`).
 """
 
 from __future__ import annotations
@@ -40,31 +48,38 @@ import math
 import signal
 from array import array
 import time
+from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple, Sequence
 
 from tsa_bench.benchdata import BenchConfig
 from tsa_bench.device import BenchClient, DeviceError
+from tsa_bench.device.faults import CLEARS, RECOVERY, fault_name, latched_text
+from tsa_bench.device.keepalive import Keepalive
 from tsa_bench.plan import Move, Plan, Prompt, Segment, Settle, TrackLength
 from tsa_bench.protocol import msg
 from tsa_bench.protocol.blocks import refusal_reason
 from tsa_bench.runner.checks import PlanRejected, check_plan_against_device  # noqa: F401 (re-exported)
-from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg
+from tsa_bench.runner.clock_fit import RunClocks
+from tsa_bench.runner.commands import NO_SEGMENT, WIRE_SEGMENTS, device_commands, load_mg, plan_segment
 from tsa_bench.rundocs import (
     EventRecord, RunConsumer, RunStart, RunStop, SegmentRecord, StorageFull,
 )
+from tsa_bench.operator import OperatorAbsent
+from tsa_bench.operator import OperatorChannel as Operator
 from tsa_bench.runner.interrupts import Interrupts
-from tsa_bench.runner.operator import Operator
 from tsa_bench.runner.pacing import Pacing
 from tsa_bench.runner.position import PositionUnknown, settle_position
 from tsa_bench.runner.resume import ResumePoint
-from tsa_bench.runner.samples import length_mm, resistance_ohm, sample_block
+from tsa_bench.runner.samples import length_mm, resistance_ohm, sample_block, segments_outside_plan
 from tsa_bench.units import G_N_PER_G
 from tsa_bench.runner.settle import IN_FLIGHT, SettleHold
 from tsa_bench.runner.tracking import COLUMNS as TRACKING_COLUMNS, Tracking
+from tsa_bench.runner.underrun import Bursts
 
 _SEGMENT_STARTED, _SEGMENT_DONE = int(msg.EventKind.SEGMENT_STARTED), int(msg.EventKind.SEGMENT_DONE)
 _FAULT, _QUEUE_EMPTY = int(msg.EventKind.FAULT), int(msg.EventKind.QUEUE_EMPTY)
 COUNTER_MOD = 1 << 32         # SAMPLE.counter is a u32
+_HALF_WIRE = WIRE_SEGMENTS // 2
 BLOCK_SAMPLES = 2048          # emit a sample block once this many samples are pending,
 BLOCK_WALL_S = 0.5            # or this much wall time has passed (segment records and events
                               # wait with them, emitted in order after the block)
@@ -97,7 +112,7 @@ class Runner:
         self.simulated = bool(self.ident.flags & msg.DeviceFlags.SIMULATED)
         self.resume = resume
         self.metadata = {**plan.metadata, **(metadata or {})}
-        n = len(plan.segments)
+        n = self._n_segments = len(plan.segments)
         first = resume.first_segment if resume is not None else 0
         if not 0 <= first <= n:
             raise ValueError(f"resume segment {first} is outside the plan's {n} segments")
@@ -127,6 +142,7 @@ class Runner:
             self._load_g = float(resume.load_g) if resume.load_g is not None else float("nan")
         self._prompt_segment: int | None = None
         self._last_status: msg.QueueStatus | None = None
+        self._fault_at_start_ok = False   # while the set-up looks at a fault latched before the run
         self._rows: list[tuple] = []
         self.block_samples = max(1, int(block_samples))  # 1: documents handed over at every read
         # documents waiting for the rows before them: (how many of _rows came before, name, doc)
@@ -137,7 +153,11 @@ class Runner:
         self.samples_lost = 0
         self.samples_discarded = 0
         self._segments_done = 0
+        self._bursts = Bursts()         # which QUEUE_EMPTY is an underrun (runner/underrun.py)
         self._pacing = Pacing(client, plan, self.ident)   # heartbeats, batched delivery (runner/pacing.py)
+        self._clocks = RunClocks(self._pacing.device_clock)   # device and sensor clock fits (runner/clock_fit.py)
+        # a line's watchdog fed from a thread of its own (in process, sim:// keeps the device's time)
+        self._keepalive = None if self._pacing.device_clock else Keepalive(client, self._pacing.heartbeat_wall_s)
         self._tracking = Tracking.for_plan(plan, self.spt)   # track_length segments (runner/tracking.py)
         self._silence_s = max(3.0, 4 * self.ident.watchdog_ms / 1000.0)
 
@@ -154,19 +174,22 @@ class Runner:
         else:
             self._emit(name, doc)
 
-    def _t(self, t_us: int) -> float:
+    def _t(self, t_us: float) -> float:
         return (t_us - (self._t0_us or 0)) / 1e6
 
-    def _event(self, kind: str, detail: str, t_us: int | None = None) -> None:
-        self._emit_later("on_event", EventRecord(self._t(self._now_us if t_us is None else t_us), kind, detail))
+    def _event(self, kind: str, detail: str, t_us: float | None = None) -> None:
+        if t_us is None:    # a host-side event: now, on the device's clock
+            t_us = self._clocks.event_us(self._now_us, time.monotonic())
+        self._emit_later("on_event", EventRecord(self._t(t_us), kind, detail))
 
     # -- protocol helpers --------------------------------------------------
     def _unwrap(self, wire: int) -> int:
-        if wire == NO_SEGMENT:
-            return -1
-        base = self._oldest - self._oldest % WIRE_SEGMENTS
-        idx = base + wire
-        return idx + WIRE_SEGMENTS if idx < self._oldest else idx
+        """The plan segment the device names (-1: none; runner/commands.py plan_segment)."""
+        return plan_segment(wire, self._oldest, len(self._done))
+
+    def _segment_named(self, wire: int) -> str:
+        idx = self._unwrap(wire)
+        return f"segment {idx}" if idx >= 0 else "outside the plan's segments"
 
     def _command(self, message: NamedTuple) -> msg.Ack:
         ack = self.client.command(message, check=False)
@@ -191,6 +214,8 @@ class Runner:
         status, reason = "success", "all segments done"
         installed_here = self.interrupts.install()
         self.client.on_wait = self.interrupts.check
+        if self._keepalive is not None:
+            self._keepalive.start()
         try:
             try:
                 self._emit("on_start", start)
@@ -212,7 +237,7 @@ class Runner:
             except StorageFull as exc:
                 status, reason = "failed", str(exc)
                 self._safe_stop()
-            except (RunFailed, DeviceError) as exc:
+            except (RunFailed, DeviceError, OperatorAbsent) as exc:
                 status, reason = "failed", str(exc)
                 self._safe_stop()
             except Exception as exc:  # a consumer or host bug: never leave the motor or heater running
@@ -228,7 +253,7 @@ class Runner:
             except Exception as exc:
                 status, reason = "failed", f"{reason}; then host error: {type(exc).__name__}: {exc}"
             stop = RunStop(status, reason, self._t(self._now_us), self.samples, self.samples_lost,
-                           self._segments_done, time.monotonic() - wall0)
+                           self._segments_done, time.monotonic() - wall0, attrs=self._clocks.attrs())
             for consumer in self.consumers:  # every consumer gets to close, even if another fails
                 try:
                     consumer.on_stop(stop)
@@ -236,20 +261,31 @@ class Runner:
                     pass
             return stop
         finally:
+            if self._keepalive is not None:
+                self._keepalive.stop()
             self.client.on_wait = None
             if installed_here:
                 self.interrupts.restore()
+
+    def _attended(self) -> AbstractContextManager:
+        """A wait for a person: the keepalive goes on however long it takes."""
+        return self._keepalive.attended() if self._keepalive is not None else nullcontext()
 
     def _signal_name(self) -> str:
         sig = self.interrupts.last_signal
         return "SIGTERM" if sig == signal.SIGTERM else "Ctrl-C"
 
     def _setup(self) -> None:
+        self._fault_at_start_ok = True
         self._command(msg.Heartbeat())
         while self._t0_us is None:          # QUEUE_STATUS gives the device clock at run start
             self._pump()
+        if self._last_status.fault:         # latched before this run (a host that left while it sampled)
+            self._clear_fault_at_start(self._last_status)
+        self._fault_at_start_ok = False
         try:                                # moves need a known twist zero
-            settle_position(self.client, self.operator, self._last_status, self.spt, self._event)
+            with self.interrupts.immediate(), self._attended():   # a person may take minutes
+                settle_position(self.client, self.operator, self._last_status, self.spt, self._event)
         except PositionUnknown as exc:
             raise RunFailed(str(exc)) from None
         if self.simulated and plan_load_known(self._load_g):
@@ -263,6 +299,20 @@ class Runner:
                                     max(1, round(r.accel_turns_per_s2 * self.spt))), "the move to the resumed twist")
             if r.heater_V:
                 self._queued(msg.SetHeater(NO_SEGMENT, round(r.heater_V * 1000)), "the resumed heater voltage")
+
+    def _clear_fault_at_start(self, status: msg.QueueStatus) -> None:
+        """Say what is latched, then CLEAR_QUEUE; RunFailed when the fault stays."""
+        what = latched_text(status, self.ident)
+        self.operator.tell(f"tsa-bench: {what}. Clearing it now (CLEAR_QUEUE) before the run starts.")
+        self._event("fault_at_start", f"{fault_name(status.fault)} latched before the run: CLEAR_QUEUE sent")
+        self._command(msg.ClearQueue())
+        self._last_status = None
+        self._command(msg.Heartbeat())
+        while self._last_status is None:
+            self._pump()
+        if self._last_status.fault:
+            raise RunFailed(f"the device keeps fault {fault_name(self._last_status.fault)} latched after "
+                             f"CLEAR_QUEUE: its cause is still there; {RECOVERY.get(fault_name(status.fault), '')}")
 
     def _teardown(self) -> None:
         self._queued(msg.SetHeater(NO_SEGMENT, 0), "heater off")
@@ -302,7 +352,14 @@ class Runner:
             pass  # the writer already said so; the device has been stopped
 
     def _feed(self) -> None:
-        """Send plan segments while the device has room; handle a prompt when idle."""
+        """Send plan segments while the device has room; handle a prompt when idle. What
+        one call sends is a burst (runner/underrun.py)."""
+        try:
+            self._feed_burst()
+        finally:
+            self._bursts.end(self._oldest)
+
+    def _feed_burst(self) -> None:
         segs = self.plan.segments
         while self._next < len(segs) and self._free > 0:
             self.interrupts.check()
@@ -342,6 +399,7 @@ class Runner:
                             f"{msg.Status(ack.status).name.lower()}{refusal_reason(command, ack.status, self.bench.baud)}")
         self._free = ack.queue_free
         self._last_sent_wire = seg.index % WIRE_SEGMENTS
+        self._bursts.accepted(seg.index)
         return True
 
     def _feed_settle(self, seg: Segment) -> bool:
@@ -383,7 +441,7 @@ class Runner:
         t_start = self._t(self._now_us)
         self._prompt_segment = seg.index
         self._event("prompt", a.text)
-        with self.interrupts.immediate():  # a person may take minutes: Ctrl-C must not wait
+        with self.interrupts.immediate(), self._attended():  # a person may take minutes: Ctrl-C must not wait
             self.operator.answer(a.text, a.load_g)
         if a.load_g is not None:
             self._load_g = float(a.load_g)
@@ -435,6 +493,7 @@ class Runner:
             self._on_event(m)
         elif isinstance(m, msg.QueueStatus):
             self._last_status = m
+            self._clocks.on_status(m, self.client.take_round_trips())
             self._now_us = max(self._now_us, m.t_us)
             if self._t0_us is None:
                 self._t0_us = m.t_us
@@ -442,8 +501,8 @@ class Runner:
                 # it answers the last heartbeat, and no command's ACK since says more
                 # (a stale count would only cost a refused, resent command)
                 self._free = m.queue_free
-            if m.fault:
-                raise RunFailed(f"device fault latched: {msg.Fault(m.fault).name.lower()}")
+            if m.fault and not self._fault_at_start_ok:
+                raise RunFailed(f"device fault latched: {fault_name(m.fault)}; {CLEARS}")
             if (not m.executing and m.queue_free == self.ident.queue_slots and self._oldest < self._next
                     and m.segment == self._last_sent_wire):
                 # idle with an empty queue after the last segment sent: whatever was sent
@@ -473,16 +532,17 @@ class Runner:
             self._event("sample_gap", f"{gap} sample(s) lost before counter {counter}", t_us)
         if t_us > self._now_us:
             self._now_us = t_us
+        t_us = self._clocks.stamp(counter, t_us)   # the sensor fit's time while sampling continuously
         self._last_counter = counter
         if self._prompt_segment is not None:
             seg = self._prompt_segment
-        elif wire == NO_SEGMENT:      # self._unwrap(wire), inline
+        elif wire == NO_SEGMENT:      # self._unwrap(wire), inline (once per sample)
             seg = -1
         else:
             oldest = self._oldest
-            seg = oldest - oldest % WIRE_SEGMENTS + wire
-            if seg < oldest:
-                seg += WIRE_SEGMENTS
+            seg = oldest + (wire - oldest + _HALF_WIRE) % WIRE_SEGMENTS - _HALF_WIRE
+            if seg >= self._n_segments or seg < 0:
+                seg = -1
         # a row for sample_block (runner/samples.py row(), inline: once per sample)
         self._rows.append((t_us, step_position, position_raw, resistance_raw, adc_flags, heater_mV, motor_moving, seg,
                            counter, self._load_g))
@@ -519,20 +579,23 @@ class Runner:
                     t_end = self._t(e.t_us)
                     self._finish_segment(idx, t_end if math.isnan(start) else float(start), t_end, True)
         elif kind == _FAULT:
-            raise RunFailed(f"device fault: {msg.Fault(e.code).name.lower()} (segment {self._unwrap(e.segment)})")
+            raise RunFailed(f"device fault: {fault_name(e.code)} ({self._segment_named(e.segment)}); "
+                            f"{RECOVERY.get(fault_name(e.code), '')}; {CLEARS}")
         elif kind == _QUEUE_EMPTY:
-            # An underrun: the device ran dry after a plan segment that is followed by more
-            # device work. Not one: set-up and tear-down commands (NO_SEGMENT; over a real
-            # link their QUEUE_EMPTY arrives after the first plan segment was sent) and the
-            # wait before an operator prompt.
+            # An underrun: the device ran dry after the last command of a burst (runner/underrun.py)
+            # of a plan segment that is followed by more device work. Not one: set-up and
+            # tear-down commands (NO_SEGMENT; over a real link their QUEUE_EMPTY arrives after
+            # the first plan segment was sent), an instant command finished before the next
+            # of its burst arrived, and the wait before an operator prompt.
             idx = self._unwrap(e.segment)
             segs = self.plan.segments
-            if 0 <= idx < len(segs) - 1 and not isinstance(segs[idx + 1].action, Prompt):
+            if (0 <= idx < len(segs) - 1 and not isinstance(segs[idx + 1].action, Prompt)
+                    and self._bursts.ran_dry_after(idx, max(1, self._parts_done[idx]))):
                 self._event("queue_underrun", f"device ran out of queued commands after segment {idx} "
                                               "before the plan ended", e.t_us)
         else:
             name = msg.EventKind(kind).name.lower() if kind in msg.EventKind._value2member_map_ else str(kind)
-            self._event(name, f"segment {self._unwrap(e.segment)} code {e.code} value {e.value}", e.t_us)
+            self._event(name, f"{self._segment_named(e.segment)} code {e.code} value {e.value}", e.t_us)
 
     def _finish_before(self, idx: int, t_us: int) -> None:
         """The device runs segments in order: any earlier one still open is done by now
@@ -571,11 +634,13 @@ class Runner:
             k += 1
         docs = later[:k]
         self._later = [(at - n, name, doc) for at, name, doc in later[k:]]
+        outside = None
         if n:
             rows, self._rows = self._rows[:n], self._rows[n:]
             self._last_block_wall = time.monotonic()
             try:
                 block = sample_block(rows, self.bench, self.spt, self._t0_us or 0)
+                outside = segments_outside_plan(block, len(self._done))
                 if self._tracking is not None:
                     self._tracking.annotate(block)
                 self._emit("on_samples", block)
@@ -588,3 +653,5 @@ class Runner:
             except BaseException:
                 self._later[:0] = [(0, nm, d) for _, nm, d in docs[i + 1:]]  # still emitted by the closing flush
                 raise
+        if outside:
+            raise RunFailed(f"host bug: {outside}")

@@ -72,3 +72,18 @@ def sample_block(rows: Sequence[tuple], bench: BenchConfig, steps_per_turn: int,
         "adc_flags": flags,
     }
     return SampleBlock({k: np.asarray(v).astype(SAMPLE_COLUMNS[k][0]) for k, v in cols.items()})
+
+
+def segments_outside_plan(block: SampleBlock, n_segments: int) -> str | None:
+    """The runner's check before a block is stored: every sample's ``segment`` is a segment
+    of the plan (0 .. ``n_segments`` - 1) or -1 (outside the plan: set-up, tear-down).
+    Samples that break it are stored with -1 (their data kept, the index never a wrong
+    one) and the returned text says what was found (None: all fine)."""
+    seg = block.columns["segment"]
+    outside = (seg < -1) | (seg >= n_segments)
+    if not outside.any():
+        return None
+    found = np.unique(seg[outside])
+    seg[outside] = -1
+    return (f"{int(outside.sum())} sample(s) named segment(s) {', '.join(map(str, found[:5].tolist()))} outside the "
+            f"plan's {n_segments} segments (stored as -1, outside the plan)")

@@ -21,6 +21,8 @@ implements it:
   (QUEUE_STATUS.state position_unknown): MOVE_TO/MOVE_BY are refused ``bad_state`` until
   SET_POSITION declares the position (refused ``bad_state`` while a move runs, waits or
   the motor is stopping or released, ``limit_exceeded`` outside the twist limits).
+  ARM_RESET is accepted at rest with the position known (``bad_state`` otherwise, as the
+  firmware); a simulated device never resets, so it changes nothing else.
 * Every other command gets ACK(acked_seq, acked_id, status, queue_free) before any
   EVENT it causes; HEARTBEAT is also answered with QUEUE_STATUS. A frame repeating the
   seq and id of the last *accepted* command is not executed again: the stored ACK is
@@ -28,7 +30,8 @@ implements it:
   so its repetition is simply evaluated again (a QUEUE_FULL retry can succeed).
 * Queued commands are checked in this order: latched fault or (moves) position
   unknown -> ``bad_state``; zero rate/accel -> ``bad_argument``; a sampling period
-  shorter than an ADS1115 conversion -> ``too_fast_for_sensor``, or whose sample
+  shorter than an ADS1115 conversion -> ``too_fast_for_sensor``, below the single-shot
+  minimum not a whole number of conversions -> ``between_conversions``, or whose sample
   frames the line (the bench's baud) cannot carry -> ``too_fast_for_line``
   (:func:`tsa_bench.protocol.blocks.sampling_refusal`); rate, accel,
   heater, MOVE_TO target or MOVE_BY projected target beyond the limits ->
@@ -61,7 +64,13 @@ implements it:
 * Every EVENT's ``value`` is the step position at that instant (the rest position for
   STOPPED and FAULT); ``code`` is the fault for FAULT, FAULT_CLEARED and MOTOR_RELEASED,
   else 0. QUEUE_STATUS carries the state bits and the position; its error counters
-  (step underruns, UART, I2C) stay 0: the simulation has no such hardware.
+  (step underruns, UART, I2C), ``max_pass_us`` and ``sensor_restarts`` stay 0: the
+  simulation has no such hardware; ``sensor_period_ns`` is the simulated ADS1115's
+  conversion period (1/860 s) while sampling continuously, else 0.
+* ``simulated=False`` (a rehearsal device, ``tsa-bench sim-serve --as-hardware``): IDENTITY
+  without the SIMULATED flag and SIM_SET_LOAD answered ``unknown_message``, as the
+  firmware; the load changes only through :meth:`SimDevice.set_load_g` (a person's hand).
+  :meth:`SimDevice.after_reset` is the device after a DTR reset.
 * Undecodable frames are dropped and counted (:attr:`frame_errors`); a valid frame
   with an id this device does not accept gets ``unknown_message``, a wrong payload
   length ``bad_length``.
@@ -110,10 +119,11 @@ class SimDevice:
     """A simulated tsa-bench device (see module docstring)."""
 
     def __init__(self, bench: BenchConfig, plant: Plant | None = None, seed: int | None = None, *,
-                 frames: bool = False) -> None:
+                 frames: bool = False, simulated: bool = True) -> None:
         self.bench = bench
         self.limits: DeviceLimits = device_limits(bench)
-        self.identity = identity_message(self.limits)
+        self.simulated = simulated       # False: passes for hardware (no SIMULATED flag, no SIM_SET_LOAD)
+        self.identity = identity_message(self.limits, simulated)
         self.plant: Plant = plant if plant is not None else plant_from_config(bench.plant, seed)
         self.sensors = SimSensors(bench.position, bench.resistance)
         self.resistance_timing = ResistanceTiming()
@@ -196,11 +206,26 @@ class SimDevice:
         """Change the hanging load, as an operator would (same as SIM_SET_LOAD)."""
         self.plant.set_load(load_g)
 
-    def boot(self) -> None:
-        """Announce the start: queue BOOT (reason POWER_ON: a fresh device, position unknown),
-        after a lone delimiter, as the firmware does (it ends a frame a reset cut short)."""
+    def boot(self, reason: msg.BootReason = msg.BootReason.POWER_ON) -> None:
+        """Announce the start: queue BOOT (default reason POWER_ON: a fresh device, position
+        unknown), after a lone delimiter, as the firmware does (it ends a frame a reset cut short)."""
         self._put_bytes(b"\x00")
-        self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(msg.BootReason.POWER_ON)))
+        self._send(msg.Boot(*SIM_FIRMWARE_VERSION, int(reason)))
+
+    def after_reset(self) -> SimDevice:
+        """A new device as this one comes out of an external reset (a Mega's DTR pulse when
+        its port opens): the same plant (the TSA hangs as it hung), fault, queue, heater and
+        sampling gone; the motor where it stood, its position kept only when it was known,
+        at rest and the motor held (firmware/README.md, "The twist zero across resets").
+        BOOT (reason external_reset) is queued."""
+        ex = self.executor
+        position, moving = ex.position_at(self.now_s)
+        fresh = SimDevice(self.bench, self.plant, frames=self._frames is not None, simulated=self.simulated)
+        fresh.executor.set_position(position)
+        fresh.position_known = (self.position_known and not moving and not ex.stopping
+                                and not self.motor_released)
+        fresh.boot(msg.BootReason.EXTERNAL_RESET)
+        return fresh
 
     def receive(self, data: bytes) -> None:
         """Handle bytes from the host at the current virtual time; replies are queued."""
@@ -403,7 +428,7 @@ class SimDevice:
     # -- input ------------------------------------------------------------
     def _handle(self, raw: RawFrame, message: NamedTuple | None = None) -> None:
         spec = msg.MESSAGES.get(raw.msg_id)
-        if spec is None or spec.direction != "host":
+        if spec is None or spec.direction != "host" or (spec.cls is msg.SimSetLoad and not self.simulated):
             self._answer(raw, _S.UNKNOWN_MESSAGE)
             return
         if message is None:
@@ -448,8 +473,9 @@ class SimDevice:
     def _queue_status(self) -> msg.QueueStatus:
         ex = self.executor
         position, _ = ex.position_at(self.now_s)
+        period_ns = round(1e9 / ADS1115_SPS) if self._step_us else 0
         return msg.QueueStatus(self._t_us(self.now_s), ex.queue_free, int(ex.executing), ex.segment, self.fault,
-                               self.state, position, 0, 0, 0, 0)
+                               self.state, position, 0, 0, 0, 0, 0, period_ns, 0)
 
     def _check(self, message: NamedTuple) -> msg.Status:
         lim = self.limits
@@ -460,6 +486,12 @@ class SimDevice:
                 return _S.BAD_STATE
             if not lim.min_twist_steps <= message.position_steps <= lim.max_twist_steps:
                 return _S.LIMIT_EXCEEDED
+            return _S.OK
+        if kind is msg.ArmReset:
+            ex = self.executor
+            if not self.position_known or ex.move_waiting or ex.stopping \
+                    or self.motor_released:
+                return _S.BAD_STATE
             return _S.OK
         if not isinstance(message, _QUEUED_TYPES):
             return _S.OK
@@ -508,6 +540,8 @@ class SimDevice:
                                  code)
         elif kind is msg.SimSetLoad:
             self.plant.set_load(message.load_mg * 1e-3)
+        elif kind is msg.ArmReset:
+            pass    # a simulated device never resets: nothing to keep
         else:
             command: QueuedCommand = message  # type: ignore[assignment]
             self.executor.push(command, self.now_s)

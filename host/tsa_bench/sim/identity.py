@@ -82,8 +82,9 @@ def device_limits(bench: BenchConfig) -> DeviceLimits:
     )
 
 
-def identity_message(limits: DeviceLimits) -> msg.Identity:
-    """The IDENTITY the simulated device answers HELLO with (flags: SIMULATED)."""
+def identity_message(limits: DeviceLimits, simulated: bool = True) -> msg.Identity:
+    """The IDENTITY the simulated device answers HELLO with (flags: SIMULATED, unless it
+    passes for hardware: a rehearsal device, ``simulated=False``)."""
     major, minor, patch = SIM_FIRMWARE_VERSION
     return msg.Identity(
         protocol_version=msg.PROTOCOL_VERSION, fw_major=major, fw_minor=minor, fw_patch=patch,
@@ -91,6 +92,6 @@ def identity_message(limits: DeviceLimits) -> msg.Identity:
         min_twist_steps=limits.min_twist_steps, max_twist_steps=limits.max_twist_steps,
         max_rate_steps_per_s=limits.max_rate_steps_per_s, max_accel_steps_per_s2=limits.max_accel_steps_per_s2,
         max_heater_mV=limits.max_heater_mV, queue_slots=limits.queue_slots, watchdog_ms=limits.watchdog_ms,
-        flags=int(msg.DeviceFlags.SIMULATED), min_sample_period_us=limits.min_sample_period_us,
+        flags=int(msg.DeviceFlags.SIMULATED) if simulated else 0, min_sample_period_us=limits.min_sample_period_us,
         fault_release_ms=limits.fault_release_ms,
     )

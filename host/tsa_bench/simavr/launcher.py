@@ -20,8 +20,10 @@ The rig's settings (the ``simavr:`` section of a bench file, or SimavrSettings, 
 ``enable_pull`` down | up (the A4988 /ENABLE resistor: down keeps the motor energized
 through a reset), ``backdrive_steps_per_s`` (how fast the loaded strings turn a released
 motor back), ``ads_rate_error`` (the ADS1115's oscillator error, +-0.1 in its data
-sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``hang_at_s`` (with
-``hang_masked``) and ``trace``.
+sheet); tests add ``twi_faults`` (firmware/sim/twi_bus.c), ``rdy_cuts`` (the ALERT/RDY
+wire cut between T0[:T1] s: firmware/sim/ads1115.c), ``hang_at_s`` (with ``hang_masked``)
+and ``trace``. :meth:`SimavrBench.brown_out` dips the supply: SRAM kept, MCUSR BORF (the
+stock bootloader clears it), the A4988's translator back at Home.
 """
 
 from __future__ import annotations
@@ -95,6 +97,8 @@ class SimavrBench:
                    "--ads-rate-error", repr(s.ads_rate_error)]
             for fault in s.twi_faults:
                 cmd += ["--twi-fault", fault]
+            for cut in s.rdy_cuts:
+                cmd += ["--rdy-cut", cut]
             if s.hang_at_s is not None:
                 cmd += ["--hang-at", repr(s.hang_at_s), "--hang-masked", "1" if s.hang_masked else "0"]
             if s.trace:
@@ -120,6 +124,11 @@ class SimavrBench:
         """The DTR pulse of a host opening the port again: an external reset of the AVR."""
         assert self._proc is not None
         self._proc.send_signal(signal.SIGUSR1)
+
+    def brown_out(self) -> None:
+        """A supply dip: the AVR resets with BORF and SRAM kept, the A4988 restarts at Home."""
+        assert self._proc is not None
+        self._proc.send_signal(signal.SIGUSR2)
 
     def set_load_g(self, load_g: float) -> None:
         assert self.plant is not None

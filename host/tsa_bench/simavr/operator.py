@@ -1,7 +1,7 @@
 """The operator of the firmware-in-the-loop bench: answers prompts by changing the
 plant's load, as a person hanging weights would.
 
-Contract: :class:`PlantOperator` satisfies :class:`tsa_bench.runner.operator.Operator`.
+Contract: :class:`PlantOperator` satisfies :class:`tsa_bench.operator.OperatorChannel`.
 The real firmware knows nothing of loads (SIM_SET_LOAD is unknown to it), so the load
 reaches the plant on the host side: at once for the plan's initial load
 (:meth:`apply_initial`), and when a prompt declares one.
@@ -10,9 +10,10 @@ reaches the plant on the host side: at once for the plan's initial load
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Protocol
 
-from tsa_bench.runner.operator import AutoOperator
+from tsa_bench.operator import AutoOperator
 
 
 class LoadSink(Protocol):
@@ -22,8 +23,8 @@ class LoadSink(Protocol):
 class PlantOperator(AutoOperator):
     """Answers every prompt at once; a declared load goes to the plant (g)."""
 
-    def __init__(self, sink: LoadSink) -> None:
-        super().__init__()
+    def __init__(self, sink: LoadSink, say: Callable[[str], None] | None = None) -> None:
+        super().__init__(say)
         self._sink = sink
 
     def apply_initial(self, load_g: float | None) -> None:

@@ -55,7 +55,7 @@ FORMAT = "tsa-bench/run"
 #: 1.2: /segments coded (kind a number named by its ``kind_names`` attribute, source and
 #: params numbers of rows of /segment_texts, each distinct text stored once) and compressed;
 #: 1.0 and 1.1 files, with the texts in every row, are read the same way.
-FORMAT_VERSION = "1.2"
+FORMAT_VERSION = "1.3"
 #: Rows per chunk of a sample column.
 CHUNK = 8192
 #: gzip level of the sample columns (0: uncompressed); shuffle goes with it.
@@ -273,6 +273,8 @@ class RunWriter:
             a["samples_not_stored"] = self.samples_not_stored
         a["duration_s"] = stop.t_end
         a["wall_time_s"] = stop.wall_time_s
+        for key, value in stop.attrs.items():
+            a[key] = value
         self._f.close()
         self._f = None
 

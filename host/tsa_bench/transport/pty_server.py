@@ -14,15 +14,24 @@ previous output has been written to the master, so a client that does not read
 stalls the device instead of growing a buffer (natural back-pressure: a silent client
 then trips the watchdog, like a real device whose host went away). Returns when
 ``stop`` is set (checked at least every 50 ms); without ``stop`` it serves forever.
+
+``as_hardware``: the device passes for the rig (no SIMULATED flag, SIM_SET_LOAD unknown)
+and, unless ``reset_on_open`` is False (a Mega wired not to reset), resets whenever a
+client opens the port, as a Mega's DTR line does (:meth:`SimDevice.after_reset`: BOOT
+external_reset, fault and queue gone, a position known at rest kept). Its load changes
+only by what arrives on ``loads`` (g: a person's hand), taken between device steps.
+``on_reset`` sees each reset device, ``on_fault`` each change of the latched fault (0: cleared).
 """
 
 from __future__ import annotations
 
 import errno
 import fcntl
+import math
 import os
-import struct
+import queue
 import select
+import struct
 import termios
 import threading
 import time
@@ -37,6 +46,8 @@ __all__ = ["serve_pty", "POLL_S", "CHUNK_BYTES"]
 
 #: Longest the loop blocks before looking at ``stop`` again (s).
 POLL_S = 0.05
+#: How long a Mega takes to boot after its DTR reset (s): more line set-up within it is the same open.
+BOOT_S = 1.0
 #: Output one device step may produce before it is written out.
 CHUNK_BYTES = 1024
 
@@ -56,17 +67,34 @@ def _open_raw_pty() -> tuple[int, int, str]:
 
 
 def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
-              on_ready: Callable[[str], None], stop: threading.Event | None = None) -> None:
+              on_ready: Callable[[str], None], stop: threading.Event | None = None, *,
+              as_hardware: bool = False, reset_on_open: bool = True,
+              loads: queue.SimpleQueue[float] | None = None,
+              on_reset: Callable[[SimDevice], None] | None = None,
+              on_fault: Callable[[int], None] | None = None) -> None:
     """Run a :class:`SimDevice` behind a pty until ``stop`` is set (see module docstring)."""
     master, slave, path = _open_raw_pty()
+    opens = OpenWatch(master, slave) if as_hardware and reset_on_open else None
     try:
-        device = SimDevice(bench, seed=seed)
+        device = SimDevice(bench, seed=seed, simulated=not as_hardware)
         pacer = Pacer(device, speed)
         device.boot()
         pending = bytearray(device.take_output())
         last_rx = (device.now_s, time.monotonic())
         on_ready(path)
+        latched = 0
         while stop is None or not stop.is_set():
+            if on_fault is not None and device.fault != latched:
+                latched = device.fault
+                on_fault(latched)   # 0: cleared
+            while loads is not None and not loads.empty():
+                device.set_load_g(loads.get())   # a person hung another load
+
+            if _host_gone(device, last_rx) and (pending or _unread(slave)):
+                # nobody reads any more (the client left): what was sent is lost, as on a
+                # serial line, and the device runs on (its watchdog must fire)
+                termios.tcflush(slave, termios.TCIFLUSH)
+                pending.clear()
             if not pending and _unread(slave) == 0 and _host_keeps_up(device, last_rx):
                 # Virtual time runs only once the client has read everything sent so
                 # far, as sim:// advances only on read: a slow client cannot fall
@@ -84,6 +112,17 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
             readable, writable, _ = select.select([master], [master] if pending else [], [], timeout)
             if readable:
                 data = _read_master(master)
+                if opens is not None:
+                    opened, data = opens.split(data)
+                    if opened:
+                        # DTR: the device resets; what it was sending is cut off, BOOT follows
+                        device = device.after_reset()
+                        pacer = Pacer(device, speed)
+                        pending = bytearray(device.take_output())
+                        last_rx = (device.now_s, time.monotonic())
+                        if on_reset is not None:
+                            on_reset(device)
+                        continue
                 if data:
                     last_rx = (device.now_s, time.monotonic())
                     device.receive(data)
@@ -96,6 +135,49 @@ def serve_pty(bench: BenchConfig, speed: float | None, seed: int | None,
         os.close(slave)
 
 
+#: TIOCPKT control bits (linux/tty.h): a termios change on a slave with EXTPROC set, a flush
+_TIOCPKT_IOCTL = 0x40
+_EXTPROC = 0o200000
+
+
+class OpenWatch:
+    """Tells when a client opens the pty's slave, where a Mega's USB bridge pulses DTR.
+
+    Packet mode on the master and EXTPROC on the slave: a client's open (pyserial sets the
+    line's termios) shows on the master as a TIOCPKT_IOCTL control packet. Every read of
+    the master then starts with a control byte: 0 before data, else a control packet
+    alone (a flush; an open). One open may set the line up more than once: a new open is
+    one after the client spoke, or more than :data:`BOOT_S` after the last.
+    """
+
+    def __init__(self, master: int, slave: int) -> None:
+        attrs = termios.tcgetattr(slave)
+        attrs[3] |= _EXTPROC
+        termios.tcsetattr(slave, termios.TCSANOW, attrs)
+        fcntl.ioctl(master, termios.TIOCPKT, struct.pack("i", 1))
+        if select.select([master], [], [], 0)[0]:   # setting EXTPROC above is itself reported once
+            os.read(master, 1)
+        self._spoke = False
+        self._last = -math.inf
+
+    def split(self, packet: bytes) -> tuple[bool, bytes]:
+        """(a client opened the port, the data) of one read of the master."""
+        if not packet:
+            return False, b""
+        control, data = packet[0], packet[1:]
+        if data:
+            self._spoke = True
+        if control & _TIOCPKT_IOCTL and (self._spoke or time.monotonic() - self._last > BOOT_S):
+            self._spoke, self._last = False, time.monotonic()
+            return True, data
+        return False, data
+
+
+def _host_gone(device: SimDevice, last_rx: tuple[float, float]) -> bool:
+    """The host has been silent for two watchdog periods of wall time: gone, not slow."""
+    return time.monotonic() - last_rx[1] > 2 * device.limits.watchdog_s
+
+
 def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
     """Whether virtual time may advance: not more than an eighth of a watchdog period past the
     device time of the host's last frame, unless the host has been silent for two
@@ -105,11 +187,9 @@ def _host_keeps_up(device: SimDevice, last_rx: tuple[float, float]) -> bool:
     can read 0 before the client has seen them; this bounds how far ahead that lets
     the device run.
     """
-    last_dev_s, last_wall = last_rx
-    watchdog_s = device.limits.watchdog_s
-    if time.monotonic() - last_wall > 2 * watchdog_s:
+    if _host_gone(device, last_rx):
         return True
-    return device.now_s < last_dev_s + watchdog_s / 8
+    return device.now_s < last_rx[0] + device.limits.watchdog_s / 8
 
 
 def _unread(slave: int) -> int:
