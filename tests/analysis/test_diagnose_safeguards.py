@@ -3,11 +3,15 @@
 calibration never sees held-out outputs; a cause that no longer earns its place leaves the
 model; a parameter at the edge of its range caps the confidence; the block bootstrap's
 interval is wide when the held-out units disagree; the naming gate turns down what does
-not improve the held-out data; hold-to-hold offsets are named only when they are random."""
+not improve the held-out data; hold-to-hold offsets are named only when they are random; the
+calibration's parameter order does not hang on string hashing (the report is reproducible)."""
 
 from __future__ import annotations
 
+import os
 import shutil
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -90,6 +94,36 @@ def test_a_form_parameter_at_the_edge_of_its_range_caps_the_confidence():
     alt = [{"effect": "resistance_sensor_drift", "form": "gain drift with time"}]
     conf, caveats = cap(0.99, "resistance_creep", alt, [])
     assert conf == 0.5 and "reference resistor" in caveats[0]
+
+
+_SPEC_ORDER = """
+from tsa_bench.analysis import load_model
+from tsa_bench.analysis.modelspec import baseline_specs, switch
+cfg = load_model(None)
+for name in ("resistance_transient_decay", "twist_hysteresis", "load_dependence", "length_creep",
+             "resistance_hysteresis", "missed_steps"):
+    cfg = switch(cfg, name, True)
+print(" ".join(s.key for s in baseline_specs(cfg)))
+"""
+
+
+def test_the_calibrated_parameters_keep_one_order_whatever_the_string_hashing():
+    """The report is reproducible bit for bit only if the calibration's parameter vector has one
+    order: it must not follow the iteration order of a set of effect names (PYTHONHASHSEED)."""
+    orders = set()
+    for hash_seed in ("1", "2", "3", "4", "5", "6"):
+        env = {**os.environ, "PYTHONHASHSEED": hash_seed}
+        proc = subprocess.run([sys.executable, "-c", _SPEC_ORDER], env=env, capture_output=True, text=True, check=True)
+        orders.add(proc.stdout.strip())
+    assert len(orders) == 1, orders
+    heads = list(dict.fromkeys(k.split(".")[0] for k in orders.pop().split() if not k.startswith("geometry.")))
+    added = ("resistance_transient_decay", "twist_hysteresis", "load_dependence", "length_creep",
+             "resistance_hysteresis", "missed_steps")
+    assert set(added) <= set(heads)
+    cfg = load_model(None)
+    for name in added:
+        cfg = switch(cfg, name, True)
+    assert [h for h in heads if h in added] == [e for e in enabled_effects(cfg) if e in added]   # the library's order
 
 
 def _units(diff: np.ndarray) -> tuple[Scores, Scores]:
