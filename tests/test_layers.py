@@ -22,7 +22,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "host" / "tsa_bench"
 #: The layers, bottom to top; a room imports its own layer and those below.
 LAYERS: tuple[tuple[str, ...], ...] = (
     # vocabulary, importing nothing of ours above it
-    ("__init__", "units", "shipped", "userfiles", "rundocs", "rundata", "benchdata", "operator"),
+    ("__init__", "units", "shipped", "userfiles", "rundocs", "rundata", "benchdata", "operator", "outputs"),
     # pure parts
     ("protocol", "motion", "models", "sim", "device"),
     # configuration and plans

@@ -45,6 +45,7 @@ def cli(*args: str) -> subprocess.CompletedProcess:
 
 
 def diagnose(run: Path, out: Path, *extra: str) -> dict:
+    shutil.rmtree(out, ignore_errors=True)      # a report folder holding files is refused (no --force here)
     cli("diagnose", str(run), "-q", "--out", str(out), *extra)
     return json.loads((out / "diagnose.json").read_text())
 
@@ -70,6 +71,7 @@ def main() -> int:
     predicted = {}
     for path, key in ((run, "same"), (run2, "other")):
         pj = work / f"predict-{key}.json"
+        pj.unlink(missing_ok=True)
         cli("predict", str(ext), str(path), "--json", str(pj))
         predicted[key] = json.loads(pj.read_text())["outputs"]
     for g in data["gain"]:

@@ -63,7 +63,7 @@ def _header(version: int, layout: list, size: int) -> bytes:
     (3, [["t", "<f8"]], "not a numeric column"),                     # a base name again
     (3, [["note", "|O"]], "not a numeric column"),                   # not a fixed numeric type
     (3, [["x; rm", "<f8"]], "not a numeric column"),
-    (4, [], "another record layout"),
+    (5, [], "another record layout"),                                # a version from the future
 ])
 def test_a_sidecar_layout_this_version_cannot_read_is_refused_with_the_reason(tmp_path, version, extra, message):
     base = [list(d) for d in RECORD.descr]

@@ -42,7 +42,9 @@ class SignallingWriter(RunWriter):
     flush number ``at_flush``, and ``at_close`` (if any) during the last flush."""
 
     def __init__(self, path, at_flush: int, column: int, signals: list[int], at_close: int | None = None) -> None:
-        super().__init__(path, min_flush_interval_s=0.0)  # a flush at every segment end
+        # a flush at every segment end; small chunks, so that flushes append sample rows (only whole
+        # chunks are written during a run)
+        super().__init__(path, min_flush_interval_s=0.0, chunk_rows=64)
         self.at_flush, self.column, self.signals, self.at_close = at_flush, column, signals, at_close
         self.sent_during_flush = False
         self.closing = False

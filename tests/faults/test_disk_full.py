@@ -62,12 +62,35 @@ def test_the_disk_filling_up_mid_run_ends_it_failed_with_a_readable_file(tmp_pat
                          capture_output=True, text=True, timeout=300, preexec_fn=_limited(4_000_000))
     assert res.returncode == 1, res.stdout + res.stderr
     assert "run failed: disk full" in res.stderr and "Traceback" not in res.stderr, res.stderr
+    assert "live view disabled" not in res.stderr   # the run stopped before its journal ran out of room
     run = read_run(out)  # read without the limit: every column the same length
     assert run.exit_status == "failed" and run.attrs["reason"].startswith("disk full"), run.attrs["reason"]
     assert len(run) > 10_000 and os.path.getsize(out) <= 4_000_000
     assert "stop_sent" in {k.decode() for k in run.events["kind"]}
     info = _cli("info", str(out))
     assert info.returncode == 0 and "failed: disk full" in info.stdout, info.stdout + info.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]   # the journal went with the closed file
+    watch = _cli("watch", str(out), "--plain", "--wait", "0")
+    assert watch.returncode == 1 and "run ended: failed (disk full" in watch.stdout, watch.stdout + watch.stderr
+    csv = tmp_path / "csv"   # and an export onto the full disk: an error, no truncated CSV
+    res = _cli("export", str(out), "--csv", "--out", str(csv), limit_bytes=1_000_000)
+    assert res.returncode == 1 and "cannot write the CSV files" in res.stderr and "Traceback" not in res.stderr, \
+        res.stderr
+    assert list(csv.iterdir()) == []
+
+
+def test_a_file_size_limit_the_journal_reaches_first_stops_the_run_with_both_files_whole(tmp_path):
+    """Compressed, the run file is about a tenth of its journal, so under a file size limit
+    the journal reaches it first: the run stops "failed: disk full" while the journal can
+    still be closed (never switched off mid-run), and the file reads back whole."""
+    out = tmp_path / "r.h5"
+    script = FILL_MID_RUN.replace("hdf5.RunWriter.__init__.__kwdefaults__['compression_level'] = 0\n", "")
+    res = subprocess.run([sys.executable, "-c", script, LIFETIME, "--output", str(out)], env=ENV,
+                         capture_output=True, text=True, timeout=300, preexec_fn=_limited(5_000_000))
+    assert res.returncode == 1, res.stdout + res.stderr
+    assert "run failed: disk full: journaling" in res.stderr and "live view disabled" not in res.stderr, res.stderr
+    run = read_run(out)
+    assert run.exit_status == "failed" and len(run) > 10_000 and not out.with_name("r.h5.live").exists()
 
 
 def test_a_small_tmpfs_filling_up_mid_run(tmp_path):

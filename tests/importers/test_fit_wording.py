@@ -16,8 +16,9 @@ from tsa_bench.cli.diagnose import _no_segments_hint
 from tsa_bench.store import read_run
 
 
-def _fit(tmp_path, run, *args):
-    return CliRunner().invoke(main, ["fit", "polynomial", str(run), "--out", str(tmp_path / "m.json"), *args])
+def _fit(tmp_path, run, *args):   # a model file per run (an existing one is not replaced without --force)
+    return CliRunner().invoke(main, ["fit", "polynomial", str(run), "--out", str(tmp_path / f"{run.stem}.json"),
+                                     *args])
 
 
 def test_percent_errors_near_zero_come_with_a_caution(tmp_path):

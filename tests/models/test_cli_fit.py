@@ -13,6 +13,7 @@ from click.testing import CliRunner
 
 from tsa_bench.cli import main
 from tsa_bench.models.saved import ModelFileError, load_model_file
+from tests.models.generator_plant import generator_plant
 from tsa_bench.reproduce.runs import history, simulate_history, step_duration_steps, twist_sweep_steps, write_run
 
 
@@ -23,7 +24,8 @@ def runs(tmp_path_factory):
     for name, steps, dt in (("a", step_duration_steps(6.0, cycles=1), 0.1), ("b", step_duration_steps(17.0, cycles=1), 0.1),
                             ("sweep", twist_sweep_steps(81.0), 0.1)):
         h = history(steps, dt_s=dt, load_g=250.0 if name == "sweep" else 350.0)
-        out[name] = str(write_run(d / f"{name}.h5", h, simulate_history(h, "sim-4ply" if name == "sweep" else "sim")))
+        plant = "sim-4ply" if name == "sweep" else generator_plant()
+        out[name] = str(write_run(d / f"{name}.h5", h, simulate_history(h, plant)))
     out["dir"] = d
     return out
 
@@ -128,7 +130,8 @@ def test_fit_at_one_load(three_load_run, tmp_path) -> None:
     assert load_model_file(one).options["load_g"] == 150
     res = CliRunner().invoke(main, ["predict", str(one), three_load_run])
     assert res.exit_code == 0 and f" {e_one['n']} " in res.output      # scored at its own load only
-    res = CliRunner().invoke(main, ["fit", "polynomial", three_load_run, "--load-g", "120", "--out", str(one)])
+    none = str(one.with_name("none.json"))   # (an existing model file is not replaced without --force)
+    res = CliRunner().invoke(main, ["fit", "polynomial", three_load_run, "--load-g", "120", "--out", none])
     assert res.exit_code != 0 and "no samples at a load of 120 g (loads: 100 g, 150 g, 200 g)" in res.output
-    res = CliRunner().invoke(main, ["fit", "self-sensing", three_load_run, "--load-g", "150", "--out", str(one)])
+    res = CliRunner().invoke(main, ["fit", "self-sensing", three_load_run, "--load-g", "150", "--out", none])
     assert res.exit_code != 0 and "--load-g applies to preisach and polynomial" in res.output

@@ -23,6 +23,7 @@ from tsa_bench.models.prandtl_ishlinskii import play, rate_thresholds
 from tsa_bench.models.self_sensing import SelfSensingModel
 from tsa_bench.models.steps import series_from_arrays, step_sequence
 from tsa_bench.models.transient import fit_decay
+from tests.models.generator_plant import generator_plant
 from tsa_bench.reproduce.runs import history, simulate_history, step_duration_steps
 
 
@@ -30,7 +31,7 @@ from tsa_bench.reproduce.runs import history, simulate_history, step_duration_st
 def run():
     """81 holds of 2 s, one-turn steps between 15 and 25 turns (the simulated bench)."""
     h = history(step_duration_steps(2.0, cycles=4, lo=15, hi=25, step=1), dt_s=0.1, load_g=350.0)
-    sim = simulate_history(h, "sim", seed=3)
+    sim = simulate_history(h, generator_plant(), seed=3)
     return series_from_arrays("gen", sim["t_s"], sim["length_mm"], sim["resistance_ohm"], h["motor_moving"])
 
 

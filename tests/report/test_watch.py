@@ -41,28 +41,44 @@ def test_sidecar_holds_exactly_the_recorded_samples(tmp_path):
         assert np.array_equal(rec[name], run.samples[name], equal_nan=True), name
 
 
-def test_reader_takes_whole_records_only(tmp_path):
+def test_reader_takes_whole_records_and_whole_documents_only(tmp_path):
+    """Torn anywhere (a writer killed mid-write, or a reader faster than it), the tail reads
+    a prefix of the samples and of the documents, and the rest once it arrives."""
     out = tmp_path / "run.h5"
     side = LiveSidecar(out, remove_at_end=False)
     simulate(PROTO["stiffness-3ply"], out, consumers=(side,))
-    path = sidecar_path(out)
-    data = path.read_bytes()
-    torn = tmp_path / "torn.h5.live"
-    torn.write_bytes(data[: len(data) - RECORD.itemsize - 7])  # end record gone, last sample torn
-    tail = LiveTail(torn)
-    rec = tail.poll()
-    assert tail.ended is None and len(rec) == len(read_run(out)) - 1
-    with open(torn, "ab") as f:  # the rest arrives later
-        f.write(data[len(data) - RECORD.itemsize - 7:])
-    assert len(tail.poll()) == 1 and tail.ended == "success"
+    data = sidecar_path(out).read_bytes()
+    whole = LiveTail(sidecar_path(out), documents=True)
+    samples = whole.poll()
+    assert whole.ended == "success" and len(samples) == len(read_run(out)) and len(whole.segments) > 5
+    size = RECORD.itemsize
+    rng = np.random.default_rng(1)
+    cuts = sorted(set(rng.integers(whole.offset - 40 * size, len(data), 60).tolist()) | {len(data) - size - 7})
+    for cut in cuts:
+        torn = tmp_path / "torn.h5.live"
+        torn.write_bytes(data[:cut])
+        tail = LiveTail(torn, documents=True)
+        first = tail.poll()
+        n_seg, n_ev = len(tail.segments), len(tail.events)
+        assert tail.ended is None, cut
+        np.testing.assert_array_equal(first, samples[:len(first)])
+        assert tail.segments == whole.segments[:n_seg] and tail.events == whole.events[:n_ev]
+        with open(torn, "ab") as f:   # the rest arrives later
+            f.write(data[cut:])
+        rest = tail.poll()
+        np.testing.assert_array_equal(np.concatenate([first, rest]), samples)
+        assert tail.segments == whole.segments and tail.events == whole.events and tail.ended == "success"
+        tail.close()
+    whole.close()
 
 
 def test_a_sidecar_that_cannot_be_written_does_not_hurt_the_run(tmp_path, capfd):
     out = tmp_path / "run.h5"
-    (tmp_path / "run.h5.live.tmp").mkdir()  # the sidecar cannot be created
+    (tmp_path / "run.h5.live").mkdir()  # the sidecar's name is taken: it cannot be created
     simulate(PROTO["stiffness-3ply"], out, consumers=(LiveSidecar(out),))
     assert read_run(out).exit_status == "success" and len(read_run(out)) == 5399
     assert "live view disabled" in capfd.readouterr().err
+    assert (tmp_path / "run.h5.live").is_dir() and sorted(p.name for p in tmp_path.iterdir()) == ["run.h5", "run.h5.live"]
 
 
 def _readline(proc: subprocess.Popen, prefix: str, timeout_s: float = 60.0) -> str:
@@ -187,6 +203,30 @@ def test_watch_says_a_killed_run_was_killed(tmp_path):
     side.unlink()  # without the sidecar, the file itself says it was never closed
     res = CliRunner().invoke(main, ["watch", str(out)])
     assert res.exit_code == 1 and "run was killed" in res.output and "never closed" in res.output
+
+
+def _recorded_by_a_child(out) -> None:
+    simulate(PROTO["stiffness-3ply"], out, consumers=(LiveSidecar(out, remove_at_end=False),))
+    os._exit(0)
+
+
+def test_a_journal_without_its_end_record_beside_a_closed_file_is_reported_as_the_file_ended(tmp_path):
+    """A full disk can refuse the journal its end record after the run file was closed: the
+    writer is gone, and `watch` reports how the file says the run ended, not a kill."""
+    import multiprocessing
+
+    out = tmp_path / "run.h5"
+    child = multiprocessing.get_context("fork").Process(target=_recorded_by_a_child, args=(out,))
+    child.start()
+    child.join(120)
+    assert child.exitcode == 0
+    side = sidecar_path(out)
+    with open(side, "r+b") as f:   # the end record was never written
+        f.truncate(side.stat().st_size - RECORD.itemsize)
+    w = _cli("watch", str(out), "--plain", "--interval", "0.1")
+    stdout, stderr = w.communicate(timeout=60)
+    assert w.returncode == 0 and "run ended: success (all segments done)" in stdout, stdout + stderr
+    assert "killed" not in stdout
 
 
 def test_watch_without_anything_to_watch(tmp_path):

@@ -14,6 +14,9 @@ import numpy as np
 from click.testing import CliRunner
 
 from tsa_bench.cli import main
+from tsa_bench.store import read_run
+from tsa_bench.store.live import LiveTail, sidecar_path
+from tsa_bench.store.recover import recover_run
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOLS = ROOT / "configs" / "protocols"
@@ -100,7 +103,10 @@ def _start_run(tmp_path: Path, speed: str) -> tuple[subprocess.Popen, Path]:
     return proc, out
 
 
-def test_sigkill_leaves_a_readable_file_with_data_up_to_the_last_flush(tmp_path):
+def test_sigkill_leaves_a_readable_file_and_a_journal_that_finishes_it(tmp_path):
+    """Killed: the file opens as it is with plain h5py (whole rows of the whole chunks it
+    stored); its journal holds every sample and segment row after those, and recovery (what
+    `run --resume` does first) puts them into the file."""
     proc, out = _start_run(tmp_path, "400")
     try:
         _wait_for_samples(out, 200)
@@ -115,7 +121,15 @@ def test_sigkill_leaves_a_readable_file_with_data_up_to_the_last_flush(tmp_path)
                            env={k: v for k, v in os.environ.items() if k != "HDF5_USE_FILE_LOCKING"})
     assert check.returncode == 0, check.stderr
     samples, segments = map(int, check.stdout.split())
-    assert samples > 200 and segments > 0
+    assert samples > 200
+    tail = LiveTail(sidecar_path(out), documents=True)
+    live = tail.poll()
+    journaled = len(tail.segments)
+    tail.close()
+    assert len(live) >= samples and journaled > segments
+    recover_run(out)
+    run = read_run(out)
+    assert len(run) == len(live) and len(run.segments) == journaled and run.exit_status == "failed"
 
 
 KILLED_FILE_CHECK = """

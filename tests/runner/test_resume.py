@@ -140,11 +140,14 @@ def test_a_killed_run_is_recovered_from_its_sidecar_then_resumed(tmp_path, unint
     assert child.exitcode == 9
     with h5py.File(first) as f:
         stored = f["samples/t"].shape[0]
+        stored_segments = f["segments"].shape[0]
         assert f.attrs["exit_status"] == "running"
-    tail = LiveTail(sidecar_path(first))
+    tail = LiveTail(sidecar_path(first), documents=True)
     live = tail.poll()
+    journaled = [(s[0], s[1], s[2], s[3]) for s in tail.segments]
     tail.close()
     assert len(live) > stored                                        # samples only the sidecar has
+    assert len(journaled) > stored_segments                          # and segment rows
     res = CliRunner().invoke(main, ["run", "--resume", str(first), "--output", str(tmp_path / "rest.h5")])
     assert res.exit_code == 0, res.output
     assert f"{len(live) - stored} samples after its last flush were recovered" in res.output
@@ -155,6 +158,8 @@ def test_a_killed_run_is_recovered_from_its_sidecar_then_resumed(tmp_path, unint
     for name in ("t", "turns", "length", "resistance", "step_position", "position_raw", "resistance_raw"):
         assert np.array_equal(run.samples[name], live[name], equal_nan=True), name
     assert not sidecar_path(first).exists()
+    assert [(int(r["index"]), r["kind"].decode(), float(r["t_start"]), float(r["t_end"])) for r in run.segments] \
+        == journaled                                                 # every segment row kept across the kill
     # killed within milliseconds of the start, before a segment record was flushed: the samples
     # show the device was executing segment 9, so the rest starts there
     rest = _rows(tmp_path / "rest.h5")
@@ -169,3 +174,48 @@ def test_nothing_to_resume(tmp_path, uninterrupted):
     assert res.exit_code == 2 and "ended in success; there is nothing to resume" in res.output
     res = CliRunner().invoke(main, ["run", "x.yaml", "--resume", str(path)])
     assert res.exit_code == 2 and "either PROTOCOL or --resume" in res.output
+
+
+def test_a_killed_run_whose_file_cannot_be_read_is_rebuilt_from_its_journal_then_resumed(tmp_path, uninterrupted):
+    """Killed inside a write, the file may not read: `info` and `run --resume` rebuild the run
+    from its journal into RUN-rebuilt.h5 (leaving the damaged file as it is) and say so."""
+    first = tmp_path / "killed.h5"
+    child = multiprocessing.get_context("fork").Process(target=_killed_child, args=(str(first), 9))
+    child.start()
+    child.join(60)
+    assert child.exitcode == 9
+    tail = LiveTail(sidecar_path(first), documents=True)
+    live = tail.poll()
+    journaled = len(tail.segments)
+    tail.close()
+    with open(first, "r+b") as f:   # a superblock's worth is left: HDF5 cannot read it
+        f.truncate(1024)
+    damaged = first.read_bytes()
+    res = CliRunner().invoke(main, ["info", str(first)])
+    assert res.exit_code == 0, res.output
+    rebuilt = tmp_path / "killed-rebuilt.h5"
+    assert f"{first} cannot be read" in res.output and f"into {rebuilt}" in res.output
+    assert first.read_bytes() == damaged and not sidecar_path(first).exists()
+    run = read_run(rebuilt)
+    assert np.array_equal(run.samples["counter"], live["counter"]) and len(run.segments) == journaled
+    assert run.exit_status == "failed" and run.attrs["rebuilt_from"] == "killed.h5"
+    res = CliRunner().invoke(main, ["run", "--resume", str(rebuilt), "--output", str(tmp_path / "rest.h5")])
+    assert res.exit_code == 0, res.output
+    with h5py.File(tmp_path / "rest.h5") as f:
+        assert f.attrs["resumed_from"] == "killed-rebuilt.h5" and f.attrs["first_segment"] == 9
+
+
+def test_run_resume_of_a_damaged_file_rebuilds_it_first(tmp_path, uninterrupted):
+    first = tmp_path / "killed.h5"
+    child = multiprocessing.get_context("fork").Process(target=_killed_child, args=(str(first), 9))
+    child.start()
+    child.join(60)
+    with open(first, "r+b") as f:
+        f.truncate(1024)
+    res = CliRunner().invoke(main, ["run", "--resume", str(first), "--output", str(tmp_path / "rest.h5")])
+    assert res.exit_code == 0, res.output
+    assert "cannot be read" in res.output and f"resuming {tmp_path / 'killed-rebuilt.h5'}" in res.output
+    with h5py.File(tmp_path / "rest.h5") as f:
+        assert f.attrs["resumed_from"] == "killed-rebuilt.h5" and f.attrs["first_segment"] == 9
+    with h5py.File(tmp_path / "killed-rebuilt.h5") as f:
+        assert f.attrs["continued_in"] == "rest.h5"

@@ -7,6 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from tests.runner.helpers import plan_from_text, run_plan
+from tests.store.hostile import looping_file
 from tsa_bench.cli import main
 from tsa_bench.store import RunFileError, read_run
 from tsa_bench.store import probe
@@ -21,17 +22,8 @@ steps:
 def _damaged(path):
     """A small HDF5 file whose global heap's first object has a wrong size (top bit of its
     size field flipped): HDF5 1.14 then loops on every read of its string attributes (found
-    by the mutation tests). Built from fixed contents, so its bytes do not depend on where
-    the test runs."""
-    with h5py.File(path, "w") as f:
-        f.attrs["format"] = "tsa-bench/run"
-        f.attrs["exit_status"] = "success"
-    data = bytearray(path.read_bytes())
-    at = data.find(b"GCOL")   # "GCOL", version, 3 reserved, 8-byte collection size, then objects:
-    assert at >= 0            # index u16, references u16, reserved u32, size u64 (at +24), data
-    data[at + 24] ^= 0x80
-    path.write_bytes(bytes(data))
-    return path
+    by the mutation tests; built by tests/store/hostile.py from fixed contents)."""
+    return looping_file(path)
 
 
 @pytest.fixture(scope="module")

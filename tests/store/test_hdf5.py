@@ -13,6 +13,7 @@ from tsa_bench.rundocs import (
 )
 from tsa_bench.store import RunWriter, read_run
 from tsa_bench.store.inspect import RunFileError, inspect_run
+from tsa_bench.store.live import LiveTail, sidecar_path
 
 REQUIRED_UNITS = {"t": "s", "turns": "turn", "length": "mm", "resistance": "ohm", "heater_voltage": "V",
                   "load": "N", "segment": "1", "motor_moving": "1"}
@@ -72,16 +73,30 @@ def test_file_meets_contract(tmp_path):
     assert json.loads(segs["params"][1]) == {"duration_s": 0.9}
 
 
-def test_segment_end_flushes(tmp_path):
+def test_segment_end_flushes_the_journal_and_the_file_gets_whole_chunks_only(tmp_path):
+    """A segment end flushes: the journal (RUN.h5.live) holds every sample and the segment at
+    once; the file gets compressed chunks only when whole (each written exactly once, so a
+    kill inside a later flush cannot corrupt them), the rest when it closes."""
     path = tmp_path / "run.h5"
-    w = RunWriter(path, flush_interval_s=1e9, min_flush_interval_s=0.0)
+    w = RunWriter(path, flush_interval_s=1e9, min_flush_interval_s=0.0, chunk_rows=10, live=True)
     w.on_start(start_doc())
     w.on_samples(block(0, 7))
-    with h5py.File(path, "r") as f:
-        assert len(f["samples/t"]) == 0  # buffered, not yet flushed
     w.on_segment(SegmentRecord(0, "move", 0.0, 0.7, {}, "p.yaml:3", None, True))
+    tail = LiveTail(sidecar_path(path), documents=True)
+    assert len(tail.poll()) == 7 and [s[0] for s in tail.segments] == [0] and tail.start["plan_name"] == "p"
     with h5py.File(path, "r") as f:
-        assert len(f["samples/t"]) == 7 and len(f["segments"]) == 1
+        assert len(f["samples/t"]) == 0 and w.flushes == 2   # at start and at the segment end
+    w.on_samples(block(0.7, 8))                             # 15 waiting: one whole chunk of 10 goes
+    w.on_segment(SegmentRecord(1, "hold", 0.7, 1.5, {}, "p.yaml:4", None, True))
+    with h5py.File(path, "r") as f:
+        assert len(f["samples/t"]) == 10 and f["samples/t"].id.get_num_chunks() == 1
+        np.testing.assert_array_equal(f["samples/counter"][()], np.arange(10))
+    assert len(tail.poll()) == 8
+    w.on_stop(RunStop("success", "done", 1.5, 15, 0, 2, 0.1))
+    run = read_run(path)
+    assert len(run) == 15 and len(run.segments) == 2 and not sidecar_path(path).exists()
+    np.testing.assert_array_equal(run.samples["counter"], np.arange(15))
+    tail.close()
 
 
 def test_inspect_reports_gaps_and_status(tmp_path):

@@ -50,6 +50,33 @@ def test_a_killed_run_keeps_the_rows_every_column_has(run_file, tmp_path):
     assert all(len(a) == n - 3 for a in run.samples.values())
 
 
+def test_a_killed_run_is_read_as_far_as_its_chunks_were_stored(tmp_path):
+    """Killed inside a flush: the declared length ran ahead of the stored chunks (which read
+    back as fill values, 0 in an integer column) and a chunk index entry points at bytes that
+    do not decode. Read as far as every column was stored and decodes, never the fill values."""
+    from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SampleBlock
+    from tsa_bench.store import RunWriter
+
+    path = tmp_path / "killed.h5"
+    w = RunWriter(path, chunk_rows=100)
+    w.on_start(RunStart("p", "", None, "", None, "sim", "sim://", "1.0.0", {}, 1, 1.0))
+    cols = {name: (np.arange(1000) + 1).astype(dtype) for name, (dtype, _) in SAMPLE_COLUMNS.items()}
+    cols["t"] = np.arange(1000) * 0.01
+    w.on_samples(SampleBlock(cols))
+    w.on_stop(RunStop("success", "done", 10.0, 1000, 0, 0, 1.0))
+    with h5py.File(path, "a") as f:
+        f.attrs["exit_status"] = "running"
+        for name in f["samples"]:
+            f["samples"][name].resize((1500,))           # rows declared, never stored
+        chunk = f["samples/counter"].id.get_chunk_info_by_coord((900,))
+    with open(path, "r+b") as f:                           # and its last stored chunk does not decode
+        f.seek(chunk.byte_offset)
+        f.write(b"\xff" * chunk.size)
+    run = read_run(path)
+    assert len(run) == 900 and run.extra["truncated_rows"] == 600
+    assert run.samples["counter"][-1] == 900 and (run.samples["segment"] > 0).all()
+
+
 def test_a_closed_run_with_unequal_columns_is_refused(run_file, tmp_path):
     with pytest.raises(RunFileError, match="differ in length"):
         read_run(_copy(run_file, tmp_path / "bad.h5", lambda f: _shorten(f, "length")))

@@ -10,6 +10,9 @@ import time
 from pathlib import Path
 
 import pyarrow.parquet as pq
+import pytest
+
+from tsa_bench.sweep.table import ResultsTable
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,7 +46,8 @@ def test_unreachable_scheduler_exits_1_naming_it(tmp_path):
     assert "error: no Dask scheduler answered at tcp://127.0.0.1:9" in r.stderr and "Traceback" not in r.stderr
 
 
-def test_ctrl_c_keeps_finished_points_and_a_rerun_finishes_the_rest(tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_or_sigterm_keeps_finished_points_and_a_rerun_finishes_the_rest(tmp_path, sig):
     study = tmp_path / "slow.yaml"
     # the ten points take about ten seconds here, far longer than the results table's 2 s flush
     # interval, so the first part is written while most points are still to run and Ctrl-C lands
@@ -56,8 +60,9 @@ def test_ctrl_c_keeps_finished_points_and_a_rerun_finishes_the_rest(tmp_path):
     deadline = time.monotonic() + 240
     while not list((out / "parts").glob("*.parquet")) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.2)
-    os.kill(proc.pid, signal.SIGINT)
+    os.kill(proc.pid, sig)
     stdout, stderr = proc.communicate(timeout=240)
+    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]   # no half-written part left
     if proc.returncode == 0:  # the machine was fast enough to finish first: nothing to resume, still whole
         assert len(pq.read_table(out / "results.parquet")) == 10
         return
@@ -81,3 +86,21 @@ def test_dry_run_and_report(tmp_path):
     assert r.returncode == 0 and "2 points, 2 to run, runner simulate" in r.stdout, r.stderr
     r = cli(str(study), "--out", str(tmp_path / "o"), "--report")
     assert r.returncode == 1 and "no results yet" in r.stderr
+
+
+def test_a_part_interrupted_while_it_is_written_leaves_nothing(tmp_path, monkeypatch):
+    """SIGTERM (a KeyboardInterrupt in the sweep) inside the Parquet writer: no part and no
+    temporary file; the rows stay buffered for the next flush."""
+    table = ResultsTable(tmp_path)
+    table.add(0, {"protocol": {"cycles": 1}}, {"protocol.cycles": 1}, {"key": "k0", "status": "done"})
+
+    def interrupted(t, where, **kw):
+        where.write(b"PAR1 half a part")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("tsa_bench.sweep.table.pq.write_table", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        table.flush()
+    assert list((tmp_path / "parts").iterdir()) == []
+    monkeypatch.undo()
+    assert table.flush() is not None and table.finished_keys() == {"k0"}

@@ -84,6 +84,13 @@ class Gain:
 
 @dataclass
 class NamedCause:
+    """One named cause: ``effect`` (a plant effect) in physical ``form`` (``variant`` is the
+    plant's name for it), acting on ``output`` ("length" or "resistance"); ``confidence``
+    and ``form_confidence`` in 0..1; ``own_improvement`` its held-out improvement in noise
+    variances per sample (``ci95`` its 95 % interval); ``relative_gain`` the held-out RMSE
+    gain per output when it was added (fraction); ``params`` its fitted parameters keyed
+    ``<effect>.<parameter>`` in the effect's documented units."""
+
     effect: str
     form: str
     variant: str                      # plant effect / form name
@@ -109,6 +116,17 @@ class NamedCause:
 
 @dataclass
 class DiagnoseResult:
+    """What :func:`~tsa_bench.analysis.diagnose` concluded (docs/diagnose.md reads it field by field).
+
+    ``verdict``: one of :data:`~tsa_bench.analysis.VERDICTS`; ``summary`` one line saying it;
+    ``named`` the causes, dominant first; ``gain`` the held-out RMSE of each output, judged
+    -> final model (mm, ohm); ``calibrated``: ``{"before": ..., "after": ...}``, the
+    parameters of the judged and of the final model, keyed ``geometry.<plant parameter>``
+    or ``<effect>.<parameter>``, in the plant's units; ``model_effects_before`` /
+    ``model_effects_after`` the effects switched on in each. :meth:`to_json` is what
+    ``diagnose.json`` holds.
+    """
+
     verdict: str
     summary: str
     named: list[NamedCause]

@@ -74,15 +74,20 @@ def _keep_points(quantity: str, bench, kept: list[tuple[float, float]], out: str
     command = (f"tsa-bench calibrate {quantity} --bench {bench.path} --points {points_text(kept)}"
                + (f" --out {out}" if out else ""))
     target = _target(bench, quantity, out)   # beside the bench file it would have written
-    saved, n = target.with_name(f"{target.stem}-points.txt"), 1
-    while saved.exists():
-        n += 1
-        saved = target.with_name(f"{target.stem}-points-{n}.txt")
-    try:
-        saved.write_text(f"# {len(kept)} point(s) measured before: {why}\n{command}\n", encoding="utf-8")
-        where = f"saved in {saved}"
-    except OSError as exc:
-        where = f"not saved ({exc.strerror or exc})"
+    from tsa_bench.outputs import OutputExists, write_text
+
+    n = 1
+    while True:   # the next free name, created exclusively (never through a link, never replacing a file)
+        saved = target.with_name(f"{target.stem}-points.txt" if n == 1 else f"{target.stem}-points-{n}.txt")
+        try:
+            write_text(saved, f"# {len(kept)} point(s) measured before: {why}\n{command}\n", force=False)
+            where = f"saved in {saved}"
+            break
+        except OutputExists:
+            n += 1
+        except OSError as exc:
+            where = f"not saved ({exc.strerror or exc})"
+            break
     click.echo(f"{why}; the {len(kept)} point(s) measured so far are kept ({where}). Re-fit them without "
                f"the rig (add points by hand as COUNTS=VALUE):\n  {command}", err=True)
 

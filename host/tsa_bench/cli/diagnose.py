@@ -17,7 +17,10 @@ from typing import Any
 
 import click
 
-from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail, unwritable_reason
+from tsa_bench.cli.exits import (
+    EXIT_ABORTED, EXIT_FAILED, check_output, check_output_folder, fail, unwritable_reason,
+)
+from tsa_bench.cli.loading import FORCE, MAX_MEMORY
 
 
 def _default_out(first_run: str) -> Path:
@@ -66,13 +69,19 @@ def _no_segments_hint(run: Any) -> str:
                    "model, printed beside the held-out figures (prospective validation).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap resampling.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress lines on stderr.")
+@MAX_MEMORY
+@FORCE
 def diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
              out_dir: str | None, json_path: str | None, max_causes: int, model_out: str | None,
-             validate_files: tuple[str, ...], seed: int, quiet: bool) -> None:
-    """Judge the simulation on RUN.h5: a verdict (explained, named, unexplained, model_mismatch), the cause, the gain."""
+             validate_files: tuple[str, ...], seed: int, quiet: bool, force: bool) -> None:
+    """Judge the simulation on RUN.h5: a verdict (explained, named, unexplained, model_mismatch), the cause, the gain.
+
+    A report folder that already holds files, or an existing --json file, is refused unless --force
+    (the --write-model file is never overwritten, --force or not).
+    """
     try:
         _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, model_out, validate_files,
-                  seed, quiet)
+                  seed, quiet, force)
     except KeyboardInterrupt:
         click.echo("diagnose: interrupted; nothing written", err=True)
         sys.exit(EXIT_ABORTED)
@@ -94,7 +103,7 @@ def _read_runs(paths: tuple[str, ...]) -> list:
 
 def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
               out_dir: str | None, json_path: str | None, max_causes: int, model_out: str | None,
-              validate_files: tuple[str, ...], seed: int, quiet: bool) -> None:
+              validate_files: tuple[str, ...], seed: int, quiet: bool, force: bool) -> None:
     if max_causes < 0:
         fail(f"--max-causes must be >= 0, got {max_causes}")
     if model_out is not None and Path(model_out).exists():
@@ -131,6 +140,8 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
         why = unwritable_reason(target) if target is not None else None
         if why:
             fail(f"{target}: cannot write the report there ({why}); nothing was analysed")
+    check_output_folder(out, force)
+    check_output(json_path, force)
 
     from tsa_bench import analysis
 
@@ -156,12 +167,15 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
     except Exception as exc:  # an engine failure is reported in one line, not as a traceback
         fail(f"diagnose failed on {', '.join(run_files)}: {type(exc).__name__}: {exc}", EXIT_FAILED)
 
+    from tsa_bench.outputs import OutputExists
     from tsa_bench.report.diagnose_report import write_json, write_report
 
     say(f"writing the report into {out}")
     try:
         paths = write_report(result, runs, out)
         jpath = write_json(result, Path(json_path) if json_path else out / "diagnose.json")
+    except OutputExists as exc:
+        fail(str(exc))
     except OSError as exc:
         fail(f"cannot write the report into {out}: {exc}", EXIT_FAILED)
     written = []

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from tsa_bench.cli.exits import fail, unwritable_reason
+from tsa_bench.cli.exits import check_output, fail, unwritable_reason
+from tsa_bench.cli.loading import FORCE, MAX_MEMORY
 
 
 @click.command("estimate")
@@ -15,7 +16,9 @@ from tsa_bench.cli.exits import fail, unwritable_reason
               help="Training run at known loads (repeatable; two or more loads in all): fit a model.")
 @click.option("--out", "out", type=click.Path(dir_okay=False), default=None,
               help="With --train: where to write the model JSON.")
-def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], out: str | None) -> None:
+@MAX_MEMORY
+@FORCE
+def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], out: str | None, force: bool) -> None:
     """Estimate load (N) and strain from resistance and twist, with one-sigma uncertainty.
 
     tsa-bench estimate --train RUN1.h5 [--train RUN2.h5] --out M.json   fits the model;
@@ -24,6 +27,7 @@ def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], ou
     estimate never reads). docs/control.md.
     """
     from tsa_bench.models import load_strain as ls
+    from tsa_bench.outputs import OutputExists
     from tsa_bench.store.reader import RunFileError, read_run
 
     def _read(path: str):
@@ -40,10 +44,11 @@ def estimate(run: str | None, model_file: str | None, train: tuple[str, ...], ou
         why = unwritable_reason(out)
         if why:
             fail(f"{out}: cannot write the model file there ({why})")
+        check_output(out, force)
         try:
             model = ls.fit([_read(p) for p in train])
             ls.save(model, out)
-        except ls.LoadStrainError as exc:
+        except (ls.LoadStrainError, OutputExists) as exc:
             fail(str(exc))
         except OSError as exc:
             fail(f"{out}: cannot write the model file ({exc.strerror or exc})")

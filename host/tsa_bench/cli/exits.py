@@ -37,3 +37,30 @@ def unwritable_reason(path: str | os.PathLike[str]) -> str | None:
     if not os.access(probe, os.W_OK | os.X_OK):
         return f"{probe} is not writable"
     return None
+
+
+def check_output(path: str | os.PathLike[str] | None, force: bool) -> None:
+    """Exit 2 before any work when the output file ``path`` exists (as a file or a link)
+    and ``--force`` was not given; a folder is never replaced."""
+    if path is None:
+        return
+    p = Path(path)
+    if os.path.lexists(p) and (not force or (p.is_dir() and not p.is_symlink())):
+        what = "a symbolic link" if p.is_symlink() else ("a folder" if p.is_dir() else "a file")
+        fail(f"{p} already exists ({what}); " + ("choose another name" if p.is_dir() and not p.is_symlink()
+                                                 else "give --force to replace it, or choose another name")
+             + "; nothing was written")
+
+
+def check_output_folder(folder: str | os.PathLike[str] | None, force: bool) -> None:
+    """Exit 2 before any work when the output folder holds files already (an earlier
+    report) and ``--force`` was not given, or is a link (never written through)."""
+    if folder is None:
+        return
+    p = Path(folder)
+    if p.is_symlink():
+        fail(f"{p} is a symbolic link; give a real folder (outputs are never written through a link); "
+             "nothing was written")
+    if p.is_dir() and not force and any(p.iterdir()):
+        fail(f"{p} already holds files; give --force to replace the ones this command writes, or --out another "
+             "folder; nothing was written")

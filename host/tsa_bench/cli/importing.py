@@ -11,6 +11,7 @@ import sys
 
 import click
 
+from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import EXIT_BAD_INPUT
 
 
@@ -82,6 +83,7 @@ def _numbers(pairs: dict[str, str], option: str) -> dict[str, float]:
               help="COLUMN: change the sign of a column (a stage position counted the other way, a meter's sign).")
 @click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
 @click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
+@MAX_MEMORY
 def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], no_header: bool,
                delimiter: str | None, decimal: str | None, sheet: str | None, var: str | None, group: str | None,
                sample_period_s: float | None, time_order: str, segments: str, thresholds: tuple[str, ...],

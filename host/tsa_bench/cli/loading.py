@@ -24,6 +24,43 @@ TRUST_FW = click.option("--trust-firmware-dir", is_flag=True,
                         help="Let a simavr bench build firmware in a folder other than this project's firmware/.")
 
 
+def FORCE(command):  # noqa: N802 (a decorator, named like the options above)
+    """``--force``: the command may replace output files that exist (never through a link:
+    the link itself is replaced); without it an existing output is refused (exit 2)."""
+    import functools
+
+    @functools.wraps(command)
+    def wrapper(*args, force: bool, **kwargs):
+        from tsa_bench.outputs import OutputExists, replace_allowed
+
+        with replace_allowed(force):
+            try:
+                return command(*args, force=force, **kwargs)
+            except OutputExists as exc:   # appeared while the command worked
+                fail(str(exc))
+
+    return click.option("--force", is_flag=True,
+                        help="Replace output files that exist (a link there is replaced, never written "
+                             "through); without it an existing output is refused.")(wrapper)
+
+
+def _set_max_memory(ctx: click.Context, param: click.Parameter, value: str | None) -> None:
+    if value is None:
+        return
+    from tsa_bench.store.budget import parse_size, set_memory_budget
+
+    try:
+        set_memory_budget(parse_size(value))
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), ctx, param) from None
+
+
+MAX_MEMORY = click.option("--max-memory", metavar="SIZE", default=None, expose_value=False, is_eager=True,
+                          callback=_set_max_memory,
+                          help="Memory budget for reading files (e.g. 8G; default: 4 GiB or half the machine's "
+                               "memory, or $TSA_BENCH_MAX_MEMORY): a file declaring more data is refused unread.")
+
+
 def is_serial_port(port: str | None) -> bool:
     """A port naming a serial device (not the simulated bench's sim://)."""
     return port is not None and not port.lower().startswith("sim://")

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
-from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, unwritable_reason
+from tsa_bench.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, check_output, unwritable_reason
+from tsa_bench.cli.loading import FORCE, MAX_MEMORY
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -73,12 +74,15 @@ def _metrics_table(title: str, rows: list[tuple[str, str, dict[str, Any]]]) -> T
 @click.option("--load-g", "load_g", type=float, default=None,
               help="preisach/polynomial: fit and score only the samples at this declared load (g).")
 @click.option("--out", "out", required=True, type=click.Path(dir_okay=False), help="Model JSON to write.")
+@MAX_MEMORY
+@FORCE
 def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col: str | None,
-            validate: tuple[str, ...], levels: int, load_g: float | None, out: str) -> None:
+            validate: tuple[str, ...], levels: int, load_g: float | None, out: str, force: bool) -> None:
     """Identify MODEL on RUNS; print identification/validation metrics; save the model JSON."""
     from tsa_bench.models.fit_samples import FitError
     from tsa_bench.models.fitting import fit, fit_notes
     from tsa_bench.models.saved import ModelFileError, save_model
+    from tsa_bench.outputs import OutputExists
 
     if not 1 <= levels <= 200:
         _fail(f"--levels must be 1..200 (the thesis uses 20), got {levels}")
@@ -87,6 +91,7 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
     why = unwritable_reason(out)
     if why:   # before the fit, which can take a while on a long run
         _fail(f"{out}: cannot write the model file there ({why})")
+    check_output(out, force)
     train = _read(runs)
     val = _read(validate)
     try:
@@ -97,6 +102,8 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
         click.echo(f"note: {note}", err=True)
     try:
         save_model(saved, out)
+    except OutputExists as exc:
+        _fail(str(exc))
     except OSError as exc:
         _fail(f"{out}: cannot write the model file ({exc.strerror or exc})")
     rows = [("identification", p, m) for p, m in saved.metrics["identification"].items()]
@@ -116,13 +123,16 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
                    "split; run:N, after:SECONDS or fraction:F as diagnose --holdout).")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
               help="Bench file only: also write the figures as JSON (full precision).")
-def predict_cmd(model_file: str, run: str, out: str | None, holdout: str | None, json_path: str | None) -> None:
+@MAX_MEMORY
+@FORCE
+def predict_cmd(model_file: str, run: str, out: str | None, holdout: str | None, json_path: str | None,
+                force: bool) -> None:
     """Print the metrics of MODEL_FILE (a saved fit model, or a bench file such as the extended model
     `diagnose --write-model` writes) on RUN; optionally write the prediction beside the measurement."""
     if Path(model_file).suffix.lower() in (".yaml", ".yml"):
         if out is not None:
             _fail("--write-prediction is for a saved fit model; a bench file's prediction is scored, not written")
-        _predict_bench(model_file, run, holdout, json_path)
+        _predict_bench(model_file, run, holdout, json_path, force)
         return
     if holdout is not None or json_path is not None:
         _fail("--holdout and --json are for a bench file (the extended model diagnose --write-model writes)")
@@ -135,8 +145,7 @@ def predict_cmd(model_file: str, run: str, out: str | None, holdout: str | None,
         saved = load_model_file(model_file)
     except ModelFileError as exc:
         _fail(str(exc))
-    if out is not None and Path(out).exists():
-        _fail(f"{out} already exists; choose another --write-prediction file (nothing is overwritten)")
+    check_output(out, force)
     data = _read([run])[0]
     try:
         pred, metrics = evaluate(saved, data)
@@ -156,7 +165,7 @@ def predict_cmd(model_file: str, run: str, out: str | None, holdout: str | None,
         click.echo(f"prediction written to {out}:/samples/{name} (a copy of {run})")
 
 
-def _predict_bench(model_file: str, run: str, holdout: str | None, json_path: str | None) -> None:
+def _predict_bench(model_file: str, run: str, holdout: str | None, json_path: str | None, force: bool) -> None:
     """A bench file's plant replayed on RUN: RMSE over every sample and over diagnose's held-out part."""
     import json
 
@@ -174,6 +183,7 @@ def _predict_bench(model_file: str, run: str, holdout: str | None, json_path: st
         why = unwritable_reason(json_path)
         if why:
             _fail(f"{json_path}: cannot write the figures there ({why})")
+    check_output(json_path, force)
     data = _read([run])[0]
     try:
         scores = score_model(plant, [data], holdout)

@@ -2,7 +2,9 @@
 
 The protocol is the one RUN.h5 stored (compiled again); the bench is ``--bench`` when
 given, else the bench text RUN.h5 stored. A killed run is first finished from its live
-sidecar (:mod:`tsa_bench.store.recover`). Exits 2 with one line when it cannot resume.
+journal (:mod:`tsa_bench.store.recover`); a run file that cannot be read is rebuilt from
+its journal into a new file, which the resumed run then continues. Exits 2 with one line
+when it cannot resume.
 """
 
 from __future__ import annotations
@@ -48,19 +50,30 @@ def _protocol_path(run_file: str) -> str:
 
 def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, allow_url: bool,
                    trust_firmware_dir: bool):
-    """(bench, plan, ResumePoint, bench file path) for resuming ``resume_file``."""
+    """(bench, plan, ResumePoint, bench file path, the run file resumed) for resuming
+    ``resume_file`` (the file resumed is a new one when ``resume_file`` had to be rebuilt)."""
     from tsa_bench.plan import PlanErrors, load_plan_text
     from tsa_bench.runner.commands import plan_problems
     from tsa_bench.runner.resume import CannotResume, resume_point
     from tsa_bench.store import RunFileError, read_run
-    from tsa_bench.store.recover import RecoveryError, recover_killed_run
+    from tsa_bench.store.live import sidecar_path
+    from tsa_bench.store.recover import RecoveryError, recover_run
 
     try:
-        run = read_run(resume_file)
-        if run.exit_status == "running":
-            recovered = recover_killed_run(resume_file)
-            click.echo(f"tsa-bench: {resume_file} was killed while recording; {recovered} samples after its last "
-                       "flush were recovered from its live sidecar", err=True)
+        try:
+            run = read_run(resume_file)
+        except RunFileError:
+            if not sidecar_path(resume_file).is_file():
+                raise
+            run = None   # killed inside a flush: rebuilt from its journal below
+        if run is None or run.exit_status == "running":
+            rec = recover_run(resume_file)
+            if rec.rebuilt:
+                click.echo(f"tsa-bench: {rec.message}; resuming {rec.path}", err=True)
+                resume_file = str(rec.path)
+            else:
+                click.echo(f"tsa-bench: {resume_file} was killed while recording; {rec.samples} samples after its "
+                           "last flush were recovered from its live sidecar", err=True)
             run = read_run(resume_file)
     except (RunFileError, RecoveryError) as exc:
         fail(str(exc))
@@ -93,4 +106,4 @@ def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, a
     except CannotResume as exc:
         fail(str(exc))
     click.echo(f"tsa-bench: {point.describe()}", err=True)
-    return bench, plan, point, bench_file
+    return bench, plan, point, bench_file, resume_file

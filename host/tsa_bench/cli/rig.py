@@ -210,21 +210,16 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
     Script commands, one per line:  +N | -N (twist by N turns)   to N (twist to N turns)
     rate N (turns/s)   heater V | heater off   wait S   stop   quit
     """
-    from tsa_bench.cli.run import _out_path
+    from tsa_bench.cli.run import release_run_file, reserve_run_file
     from tsa_bench.device import DeviceError
     from tsa_bench.rig.jog import JogError, JogSession, parse_command
     from tsa_bench.rig.link import RigError
     from tsa_bench.store import RunWriter
-    from tsa_bench.store.live import LiveSidecar
 
     bench, url = _rig(port, bench_path, allow_url)
     limit = bench.limits.max_rate_turns_per_s
     if limit is not None and rate > limit:
         fail(f"--rate {rate:g} turns/s is above the bench's {limit:g} turns/s")
-    path = Path(out_file) if out_file else _out_path(out_dir, "jog")
-    if path.exists():
-        fail(f"{path} already exists; choose another --output")
-    path.parent.mkdir(parents=True, exist_ok=True)
     lines = None
     if script is not None:
         text = sys.stdin.read() if script == "-" else Path(script).read_text(encoding="utf-8", errors="replace")
@@ -236,6 +231,7 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
             fail(f"{script}:{i + 1}: {exc}")
     elif not sys.stdin.isatty():
         fail("jog reads keys from a terminal; give --script FILE (or --script -) to run commands instead")
+    path = reserve_run_file(out_dir, "jog", out_file)   # exclusively: concurrent sessions get their own names
     click.echo(f"run file     {path}")
     status, reason = "success", "session ended by the operator"
     try:
@@ -244,7 +240,7 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
             note = link.require_position()
             if note:
                 click.echo(note)
-            session = JogSession(link, [RunWriter(path), LiveSidecar(path)], rate_turns_per_s=rate,
+            session = JogSession(link, [RunWriter(path, live=True, reserved=True)], rate_turns_per_s=rate,
                                  heater_timeout_s=heater_timeout_s, backend=backend, say=click.echo)
             session.start()
             try:
@@ -260,6 +256,8 @@ def jog(port, bench_path, out_dir, out_file, script, step_turns, rate, heater_V,
                 session.finish(status, reason)
     except RigError as exc:
         fail(str(exc), EXIT_FAILED)
+    finally:
+        release_run_file(path)   # nothing recorded (the link failed): the reserved name is given back
     if status == "failed":
         click.echo(f"error: {reason}", err=True)
     click.echo(f"wrote {path}")

@@ -17,7 +17,8 @@ import click
 
 from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_FAILED, fail
 from tsa_bench.cli.loading import (
-    ALLOW_URL, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit, load_plan_or_exit, meta_pairs,
+    ALLOW_URL, MAX_MEMORY, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit, load_plan_or_exit,
+    meta_pairs,
 )
 
 
@@ -32,24 +33,63 @@ def _sim_url(bench_file: str | None, speed: float | None, seed: int | None) -> s
     return "sim://" + ("?" + urllib.parse.urlencode(query) if query else "")
 
 
+#: Longest plan-name part of a run file's name (characters): a name may be 255 bytes.
+MAX_NAME_CHARS = 80
+
+
+def _safe_name(plan_name: str) -> str:
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", plan_name).strip("-.") or "run"
+    return safe[:MAX_NAME_CHARS].rstrip("-.") or "run"
+
+
 def _out_path(out_dir: str, plan_name: str) -> Path:
+    """Reserve (create empty, exclusively) the next free ``DATE-TIME_PLAN[-n].h5`` in ``out_dir``:
+    runs started together into one folder get different names."""
+    from tsa_bench.outputs import reserve_free_name
+
     stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", plan_name).strip("-") or "run"
-    path = Path(out_dir) / f"{stamp}_{safe}.h5"
-    n = 1
-    while path.exists():
-        n += 1
-        path = Path(out_dir) / f"{stamp}_{safe}-{n}.h5"
-    return path
+    return reserve_free_name(out_dir, f"{stamp}_{_safe_name(plan_name)}")
 
 
 def _resumed_path(first: Path) -> Path:
-    path = first.with_name(f"{first.stem}-resumed.h5")
-    n = 1
-    while path.exists() or path.is_symlink():
-        n += 1
-        path = first.with_name(f"{first.stem}-resumed-{n}.h5")
-    return path
+    from tsa_bench.outputs import reserve_free_name
+
+    return reserve_free_name(first.parent, f"{first.stem[:MAX_NAME_CHARS + 20]}-resumed")
+
+
+def reserve_run_file(out_dir: str, plan_name: str, out_file: str | None, resume_file: str | None = None) -> Path:
+    """The run file, reserved for this process (created empty, O_EXCL, never through a link):
+    ``out_file`` exactly, else the next free name in ``out_dir`` (or beside a resumed run).
+    Exits 2 when it cannot be; :func:`release_run_file` gives it back if nothing is recorded."""
+    from tsa_bench.outputs import create_new
+
+    path = Path(out_file) if out_file else None
+    try:
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            os.close(create_new(path))
+            return path
+        if resume_file is not None and out_dir == "runs":
+            return _resumed_path(Path(resume_file))
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        return _out_path(out_dir, plan_name)
+    except FileExistsError:
+        fail(f"{path} already exists; choose another --output (recorded data is never overwritten); nothing was run")
+    except OSError as exc:
+        fail(f"cannot write the run file in {out_file or out_dir}: {exc.strerror or exc}; nothing was run")
+    raise AssertionError("unreachable")
+
+
+def release_run_file(path: Path) -> None:
+    """Remove a reserved run file that nothing was written to (the run never started)."""
+    from tsa_bench.store.live import sidecar_path
+
+    try:
+        if path.is_file() and not path.is_symlink() and path.stat().st_size == 0 \
+                and not os.path.lexists(sidecar_path(path)):
+            path.unlink()
+    except OSError:
+        pass
 
 
 def _start_simavr(bench, speed: float | None, seed: int | None, trust_firmware_dir: bool):
@@ -103,6 +143,7 @@ def _report_simavr(fil) -> None:
                    "file linked to it (default name: RUN-resumed.h5 beside it).")
 @ALLOW_URL
 @TRUST_FW
+@MAX_MEMORY
 def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
         speed: float | None, seed: int | None, metas: tuple[str, ...], resume_file: str | None, allow_url: bool,
         trust_firmware_dir: bool) -> None:
@@ -119,15 +160,18 @@ def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir:
     interrupts.install()
     if hasattr(signal, "SIGXFSZ"):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    session: dict = {}
     try:
         with interrupts.immediate():
-            session = _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file,
-                                   allow_url, trust_firmware_dir)
+            _prepare_run(session, protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file,
+                         allow_url, trust_firmware_dir)
         code = _execute_run(session, interrupts)
     except KeyboardInterrupt:
         click.echo("aborted before the run started; nothing was run", err=True)
         code = EXIT_ABORTED
     finally:
+        if "path" in session:
+            release_run_file(session["path"])
         if interrupts.requested:
             # Exiting 130: a further signal must not change that, nor kill the process
             # while Python shuts down (it puts default handlers back, but keeps SIG_IGN).
@@ -151,10 +195,11 @@ def _check_simulation_options(port: str | None, bench, speed: float | None, seed
         fail("--speed must be > 0 (a real-time factor)")
 
 
-def _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file, allow_url,
-                 trust_firmware_dir):
+def _prepare_run(session: dict, protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file,
+                 allow_url, trust_firmware_dir) -> None:
     """Everything that can be refused before anything is opened: bench, protocol, port,
-    output path, free space. Exits 2 (bad input) or 1 (no room) with nothing sent."""
+    output path (reserved: ``session["path"]``), free space; fills ``session``. Exits 2 (bad
+    input) or 1 (no room) with nothing sent."""
     from tsa_bench.store.space import StorageFull, ensure_room, run_bytes
 
     check_port_or_exit(port, allow_url)
@@ -165,7 +210,8 @@ def _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, met
             fail("give either PROTOCOL or --resume RUN.h5 (a resumed run uses the protocol stored in RUN.h5)")
         from tsa_bench.cli.resume import prepare_resume
 
-        bench, plan, resume, bench_file = prepare_resume(resume_file, bench_path, port, allow_url, trust_firmware_dir)
+        bench, plan, resume, bench_file, resume_file = prepare_resume(resume_file, bench_path, port, allow_url,
+                                                                      trust_firmware_dir)
     else:
         if protocol is None:
             fail("missing PROTOCOL (a protocol YAML file), or --resume RUN.h5")
@@ -173,28 +219,15 @@ def _prepare_run(protocol, bench_path, port, out_dir, out_file, speed, seed, met
         plan = load_plan_or_exit(protocol, bench)
         bench_file = bench.path
     _check_simulation_options(port, bench, speed, seed)
-    if out_file:
-        path = Path(out_file)
-    elif resume is not None and out_dir == "runs":
-        path = _resumed_path(Path(resume_file))
-    else:
-        path = _out_path(out_dir, plan.name)
-    if path.exists() or path.is_symlink():  # never overwrite recorded data
-        fail(f"{path} already exists; choose another --output; nothing was run")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        fail(f"cannot write the run file {path}: {exc.strerror or exc}; nothing was run")
-    if not path.parent.is_dir() or not os.access(path.parent, os.W_OK):
-        fail(f"cannot write the run file {path}: its folder is not writable; nothing was run")
+    path = session["path"] = reserve_run_file(out_dir, plan.name, out_file, resume_file if resume else None)
     summary = plan.summary()
     period_s = min(plan.sampling_period_s, summary.sampling_period_range_s[0] or plan.sampling_period_s)
     try:
         ensure_room(path, run_bytes(summary.duration_s / period_s, len(plan.segments)), "this run")
     except StorageFull as exc:
         fail(f"{exc}; free some space or choose another --out; nothing was run", EXIT_FAILED)
-    return dict(bench=bench, bench_file=bench_file, plan=plan, port=port, path=path, speed=speed, seed=seed,
-                meta=meta, resume=resume, trust_firmware_dir=trust_firmware_dir)
+    session.update(bench=bench, bench_file=bench_file, plan=plan, port=port, path=path, speed=speed, seed=seed,
+                   meta=meta, resume=resume, trust_firmware_dir=trust_firmware_dir)
 
 
 def _open(session: dict):
@@ -243,7 +276,6 @@ def _execute_run(session: dict, interrupts) -> int:
     from tsa_bench.runner import PlanRejected, Runner, check_plan_against_device
     from tsa_bench.store import RunFileError, RunWriter
     from tsa_bench.store.inspect import inspect_run
-    from tsa_bench.store.live import LiveSidecar
 
     bench, plan, path, resume = session["bench"], session["plan"], session["path"], session["resume"]
     fil = None  # firmware in the loop (simavr)
@@ -284,12 +316,12 @@ def _execute_run(session: dict, interrupts) -> int:
             operator = AutoOperator(say=person.tell) if simulated else person
             if resume is not None and not simulated:
                 _confirm_resume(resume, person)
-            writer = RunWriter(path)
+            writer = RunWriter(path, live=True, reserved=True)   # it keeps the run's journal RUN.h5.live
             if fil is not None:
                 from tsa_bench.simavr.operator import PlantOperator
                 operator = PlantOperator(fil, say=person.tell)
                 operator.apply_initial(plan.load_g if resume is None else resume.load_g)
-        consumers = [writer, LiveSidecar(path)]  # sidecar after the writer: tsa-bench watch
+        consumers = [writer]
         if _progress_can_show():
             from tsa_bench.console.progress import ProgressDisplay
 
@@ -308,12 +340,13 @@ def _execute_run(session: dict, interrupts) -> int:
             _report_simavr(fil)
     if writer is not None and writer.broken:
         # The HDF5 library failed a write: its state is broken and it would crash on exit.
-        click.echo(f"error: run failed: {writer.broken}; the samples are in {path}.live "
-                   "(tsa-bench watch reads it)", err=True)
+        click.echo(f"error: run failed: {writer.broken}; the run's journal {path}.live holds every sample: "
+                   f"tsa-bench run --resume {path} (or tsa-bench info {path}) rebuilds the run from it", err=True)
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(EXIT_FAILED)
-    if path.exists():
+    recorded = path.is_file() and path.stat().st_size > 0   # the reservation stays empty if nothing started
+    if recorded:
         try:  # the writer's running statistics: the file is not read back
             info = writer.summary() if writer is not None and writer.stats.n else inspect_run(path)
             click.echo(format_run_info(info))
@@ -333,7 +366,12 @@ def _execute_run(session: dict, interrupts) -> int:
         click.echo(f"run {status}: {reason}", err=True)
         if status != "success":
             click.echo(f"  {_next_step(stop, path, resume)}", err=True)
-    click.echo(f"wrote {path}" if path.exists() else f"no run file was written ({path})")
+    if writer is not None and writer.close_error:
+        click.echo(f"error: the run file could not be closed properly: {writer.close_error}; it is marked failed "
+                   f"and the run's journal {path}.live is kept (tsa-bench run --resume {path} rebuilds the run "
+                   "from it)", err=True)
+        return EXIT_FAILED
+    click.echo(f"wrote {path}" if recorded else f"no run file was written ({path})")
     if writer is not None and writer.full and stop.exit_status == "success":
         return EXIT_FAILED
     return {"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED)

@@ -9,12 +9,14 @@ in the last line) or the report was drawn; 1 the cluster could not be reached or
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
 import click
 
-from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail
+from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, check_output_folder, fail
+from tsa_bench.cli.loading import FORCE
 
 
 @click.command("sweep")
@@ -33,9 +35,9 @@ from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_FAILED, fail
                    "parameter, rates with 95 % intervals) into <out>/report/.")
 @click.option("--dry-run", is_flag=True, help="Validate the study and list its points; run nothing.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress on stderr.")
+@FORCE
 def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: int | None, timeout_s: float,
-          retry_failed: bool,
-          report_only: bool, dry_run: bool, quiet: bool) -> None:
+          retry_failed: bool, report_only: bool, dry_run: bool, quiet: bool, force: bool) -> None:
     """Run the points of STUDY.yaml (grids, lists, seeded draws) and keep one row per point in a Parquet table."""
     import importlib.util
 
@@ -72,6 +74,7 @@ def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: 
     missing = sum(p.key not in finished for p in study.points)
     say = (lambda msg: None) if quiet else (lambda msg: click.echo(f"sweep: {msg}", err=True))
     if report_only:
+        check_output_folder(folder / "report", force)
         _report(study, table, folder)
         return
     if dry_run:
@@ -83,7 +86,15 @@ def sweep(study_file: str, out_dir: str | None, scheduler: str | None, workers: 
     where = scheduler or f"a local cluster of {workers or _cores()} worker process(es)"
     say(f"study {study.name!r}: {len(study.points)} points, {len(study.points) - missing} already in {folder}, "
         f"{missing} to run on {where}")
-    _run(study, table, folder, scheduler, workers, timeout_s, retry_failed, quiet)
+    previous = signal.signal(signal.SIGTERM, _terminated)   # SIGTERM stops a sweep as Ctrl-C does
+    try:
+        _run(study, table, folder, scheduler, workers, timeout_s, retry_failed, quiet)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _terminated(signum, frame) -> None:
+    raise KeyboardInterrupt("SIGTERM")
 
 
 def _cores() -> int:

@@ -137,11 +137,30 @@ def _summary_from_file(run_path: Path, echo: Callable[[str], None]) -> int:
     return 0 if run.exit_status == "success" else 1
 
 
-def _being_written(run_path: Path) -> bool:
-    """The run file is open for writing by another process (HDF5's file lock says so):
-    a run starting up, whose sidecar appears a moment after the run file."""
+def _closed_status(run_path: Path) -> tuple[str, str] | None:
+    """(exit status, reason) of a run file its writer closed; None if it was not closed."""
     from tsa_bench.store import RunFileError, read_run
 
+    try:
+        run = read_run(run_path)
+    except RunFileError:
+        return None
+    if run.exit_status == "running":
+        return None
+    return run.exit_status, str(run.attrs.get("reason", ""))
+
+
+def _being_written(run_path: Path) -> bool:
+    """The run file is open for writing by another process (HDF5's file lock says so), or
+    is still the empty file a starting run reserved its name with: a run starting up,
+    whose sidecar appears a moment after the run file."""
+    from tsa_bench.store import RunFileError, read_run
+
+    try:
+        if run_path.stat().st_size == 0:
+            return True
+    except OSError:
+        return False
     try:
         read_run(run_path)
     except RunFileError as exc:
@@ -205,8 +224,14 @@ def watch(run_path: str | Path, *, plain: bool = False, once: bool = False, inte
                 if live is not None:
                     live.stop()
                     live = None
+                closed = _closed_status(run_path)
+                if closed is not None:   # the file was closed; the journal could not say so (a full disk)
+                    status, reason = closed
+                    echo(f"run ended: {status} ({reason}); {state.samples} samples seen; file {run_path}")
+                    return 0 if status == "success" else 1
                 echo(f"run was killed: writer process {head.get('pid')} is gone without ending the run; "
-                     f"{state.samples} samples seen; {run_path} holds the data up to its last flush")
+                     f"{state.samples} samples seen; tsa-bench run --resume {run_path} (or tsa-bench info) "
+                     "recovers them from its journal")
                 return 1
             if once:
                 echo(state.line())

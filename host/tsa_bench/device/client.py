@@ -210,7 +210,14 @@ class BenchClient:
 
     # -- session ----------------------------------------------------------
     def connect(self, boot_timeout_s: float = 3.0, baud: int | None = None) -> msg.Identity:
-        """Wait for BOOT (up to ``boot_timeout_s``), then handshake; return IDENTITY."""
+        """Wait for BOOT (up to ``boot_timeout_s`` s of wall time), then handshake; return IDENTITY.
+
+        A missing BOOT is not an error (the port may not reset the device); the HELLO is
+        tried three times, each waiting ``4 * ack_timeout_s``. ``baud`` (bit/s) is only named
+        in the error message. Raises :class:`~tsa_bench.device.ConnectionLost` when the port
+        fails, :class:`~tsa_bench.device.DeviceNotFound` when nothing answers and
+        :class:`~tsa_bench.device.DeviceMismatch` for a device of another protocol catalogue.
+        """
         deadline = time.monotonic() + boot_timeout_s
         while self.boot is None and time.monotonic() < deadline:
             for m in self._read():

@@ -19,6 +19,8 @@ are numbered from 1 in messages (``file:row 12``).
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -26,13 +28,56 @@ import numpy as np
 
 from tsa_bench.importers.errors import SUPPORTED, ImportFileError
 from tsa_bench.importers.table import Column, SourceTable
+from tsa_bench.store.budget import check_budget, memory_budget
+
+
+def _v5_unpacked_bytes(path: Path, limit: float) -> int:
+    """Bytes of a v5 file's variables once unpacked, counted by streaming through them (a
+    compressed variable is inflated piece by piece and dropped), stopping past ``limit``:
+    a few kilobytes can declare or inflate to gigabytes."""
+    total = 0
+    with open(path, "rb") as f:
+        head = f.read(128)
+        order = "<" if head[126:128] == b"IM" else ">"
+        while total <= limit:
+            tag = f.read(8)
+            if len(tag) < 8:
+                break
+            kind, size = struct.unpack(order + "II", tag)
+            if kind >> 16:   # a small element packed in its tag
+                total += 4
+                continue
+            if kind != 15:   # stored as it is
+                total += size
+                f.seek(size + (-size % 8), 1)
+                continue
+            inflate, left = zlib.decompressobj(), size
+            while left and total <= limit:
+                piece = f.read(min(left, 1 << 16))
+                if not piece:
+                    break
+                left -= len(piece)
+                data = piece
+                while data and total <= limit:
+                    total += len(inflate.decompress(data, 1 << 20))
+                    data = inflate.unconsumed_tail
+            f.seek(left, 1)
+    return total
 
 
 def _v5(path: Path) -> dict[str, Any]:
     import scipy.io
 
+    limit = memory_budget() / 2
+    try:
+        unpacked = _v5_unpacked_bytes(path, limit)
+    except (OSError, struct.error, zlib.error):
+        unpacked = 0   # damaged: loadmat below says why
+    check_budget(unpacked * 2.0, str(path), "its variables")   # the values, and the float copy of the table
     try:
         raw = scipy.io.loadmat(path, simplify_cells=True)
+    except MemoryError:
+        raise
     except Exception as exc:  # scipy raises ValueError, TypeError, ... on damaged files
         raise ImportFileError(f"{path}: looks like a MATLAB v5 .mat file but cannot be read "
                               f"({type(exc).__name__}: {exc}); supported formats: {SUPPORTED}") from None
@@ -58,6 +103,14 @@ def _v73(path: Path) -> dict[str, Any]:
         raise ImportFileError(f"{path}: {why}")
     try:
         with h5py.File(path, "r") as f:
+            declared = [0.0]
+
+            def add(_name: str, obj: Any) -> None:
+                if isinstance(obj, h5py.Dataset) and obj.shape is not None:
+                    declared[0] += float(np.prod(obj.shape, dtype=float)) * (obj.dtype.itemsize + 8)
+
+            f.visititems(add)
+            check_budget(declared[0], str(path), "its variables")
             return {k: _h5(v) for k, v in f.items() if not k.startswith("#")}
     except OSError as exc:
         raise ImportFileError(f"{path}: looks like a MATLAB v7.3 .mat file but cannot be read ({exc}); "

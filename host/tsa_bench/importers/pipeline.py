@@ -19,6 +19,7 @@ and with which unit and factor, every column left out and why, and what was done
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ from tsa_bench.importers.headers import same_unit, split_header
 from tsa_bench.importers.values import converted
 from tsa_bench.importers.writer import fill, start_record, write_run
 from tsa_bench.rundocs import SAMPLE_COLUMNS
+from tsa_bench.store.budget import OverBudget
 
 
 @dataclass
@@ -138,10 +140,25 @@ def _no_measured_column(table: Any, chosen: list[Choice], left: dict[int, str]) 
 
 
 def import_file(src_path: str | Path, out_path: str | Path, options: ImportOptions) -> ImportSummary:
-    """Convert one source file into a run file; see the module contract."""
+    """Convert one source file into a run file; see the module contract.
+
+    A file that needs more memory than the budget (:mod:`tsa_bench.store.budget`, reckoned
+    from what it declares before its data is read), or more than the machine gives
+    (MemoryError), is refused with an ImportFileError saying so; nothing is written."""
+    try:
+        return _import_file(src_path, out_path, options)
+    except OverBudget as exc:
+        raise ImportFileError(str(exc)) from None
+    except MemoryError:
+        raise ImportFileError(f"{src_path}: not enough memory to import it (the machine refused more); nothing was "
+                              "written. Free memory, import a part of the file, or check that it is not damaged") \
+            from None
+
+
+def _import_file(src_path: str | Path, out_path: str | Path, options: ImportOptions) -> ImportSummary:
     src, out = Path(src_path), Path(out_path)
     o = options
-    if out.exists():
+    if os.path.lexists(out):   # a file, or a link (even a dangling one): never replaced, never written through
         raise ImportFileError(f"{out} already exists; choose another --out (existing runs are never replaced)")
     if o.sample_period_s is not None and not (math.isfinite(o.sample_period_s) and o.sample_period_s > 0):
         raise ImportFileError(f"--sample-period must be a positive number of seconds, got {o.sample_period_s}")

@@ -10,6 +10,7 @@ Messages name the sheet and the spreadsheet row (``file:sheet 'Data' row 12``).
 from __future__ import annotations
 
 import datetime as dt
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,10 @@ import numpy as np
 from tsa_bench.importers.errors import SUPPORTED, ImportFileError
 from tsa_bench.importers.table import Column, SourceTable, numbers
 from tsa_bench.importers.text import layout
+from tsa_bench.store.budget import check_budget
+
+#: Memory per byte of unpacked worksheet XML while its cells are read (Python objects per cell).
+XML_FACTOR = 3
 
 
 def _text(v: object) -> str:
@@ -39,7 +44,15 @@ def read_xlsx(path: Path, sheet: str | None, no_header: bool) -> SourceTable:
         raise ImportFileError(f"{path}: an Excel workbook; reading it needs the optional extra 'xlsx' "
                               "(pip install 'tsa-bench[xlsx]', which installs openpyxl)") from None
     try:
+        with zipfile.ZipFile(path) as z:   # the sheets' sizes once unpacked, from the zip directory
+            unpacked = sum(i.file_size for i in z.infolist() if i.filename.startswith("xl/worksheets/"))
+    except (zipfile.BadZipFile, OSError, ValueError):
+        unpacked = 0   # load_workbook below says what is wrong
+    check_budget(unpacked * XML_FACTOR, str(path), "its worksheets")
+    try:
         wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+    except MemoryError:
+        raise
     except Exception as exc:  # openpyxl raises many kinds on a damaged zip or workbook
         raise ImportFileError(f"{path}: looks like an Excel workbook (.xlsx) but cannot be read "
                               f"({type(exc).__name__}: {exc}); supported formats: {SUPPORTED}") from None

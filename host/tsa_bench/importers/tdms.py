@@ -15,6 +15,7 @@ import numpy as np
 
 from tsa_bench.importers.errors import SUPPORTED, ImportFileError
 from tsa_bench.importers.table import Column, SourceTable
+from tsa_bench.store.budget import OverBudget, check_budget
 
 
 def read_tdms(path: Path, group: str | None) -> SourceTable:
@@ -25,8 +26,12 @@ def read_tdms(path: Path, group: str | None) -> SourceTable:
         raise ImportFileError(f"{path}: a LabVIEW TDMS file; reading it needs the optional extra 'tdms' "
                               "(pip install 'tsa-bench[tdms]', which installs npTDMS)") from None
     try:
+        meta = TdmsFile.read_metadata(path)   # channel lengths from the segment headers: no data read
+        check_budget(sum(len(c) for g in meta.groups() for c in g.channels()) * 16.0, str(path), "its channels")
         f = TdmsFile.read(path)
         groups = f.groups()
+    except (MemoryError, OverBudget):
+        raise
     except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error ... on damaged files
         raise ImportFileError(f"{path}: looks like a LabVIEW TDMS file but cannot be read "
                               f"({type(exc).__name__}: {exc}); supported formats: {SUPPORTED}") from None

@@ -5,8 +5,11 @@ segments found), ``motor_moving`` from ``turns``, ``counter`` the row number,
 ``step_position``/``position_raw``/``resistance_raw`` 0, ``adc_flags`` bit 2 where
 resistance is NaN and bit 3 where length is NaN. Extra columns are sample columns of the
 run (``RunStart.extra_columns``: compressed, on the t dimension scale, with their units). The
-file is written to a temporary name and renamed; an existing file is never replaced, and
-nothing is left behind on failure.
+file is written under a random temporary name beside ``out`` (``OUT.h5.<random>.importing``,
+created exclusively, never through a link; the file HDF5 reopens is checked to be that one)
+and published with a hard link that refuses an existing name (:mod:`tsa_bench.outputs`): an
+existing file or link is never replaced or written through, and nothing is left behind on
+failure.
 
 The run writer creates the file, the segments and the attributes; the sample columns,
 whole in memory here, are then written in one call each, and a column holding only its
@@ -24,9 +27,10 @@ from typing import Any
 import h5py
 import numpy as np
 
+from tsa_bench.importers.errors import ImportFileError
+from tsa_bench.outputs import OutputExists, same_file, writing
 from tsa_bench.rundocs import SAMPLE_COLUMNS, RunStart, RunStop, SegmentRecord
 from tsa_bench.store.hdf5 import RunWriter
-from tsa_bench.store.replace import replacing
 
 #: gzip level of an imported run's sample columns: 1 writes a 1,000,000-row import in 0.36 s of CPU
 #: where the recorder's level 4 takes 0.46 s, for a file 1.5 % larger (scripts/bench/import_speed.py)
@@ -63,25 +67,34 @@ def _only_fill(values: np.ndarray, fill: Any) -> bool:
 
 def write_run(out: Path, start: RunStart, samples: dict[str, np.ndarray], extras: dict[str, tuple[np.ndarray, str]],
               segments: list[SegmentRecord], reason: str) -> Path:
-    """Write the run file ``out`` (module contract)."""
-    if out.exists():
-        raise FileExistsError(out)
+    """Write the run file ``out`` (module contract); FileExistsError if it exists."""
     n = len(samples["t"])
     start = replace(start, extra_columns={name: ("f8", unit, {}) for name, (_, unit) in extras.items()})
-    with replacing(out, ".importing") as tmp:
-        writer = RunWriter(tmp, compression_level=IMPORT_COMPRESSION)
-        writer.on_start(start)
-        for s in segments:
-            writer.on_segment(s)
-        writer.on_stop(RunStop("success", reason, float(samples["t"][-1]), n, 0, 0, 0.0))
-        with h5py.File(tmp, "a") as f:
-            g = f["samples"]
-            for name, values in {**samples, **{k: v for k, (v, _) in extras.items()}}.items():
-                ds = g[name]
-                ds.resize((n,))
-                if _only_fill(values, ds.fillvalue):
-                    continue
-                ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
+    try:
+        with writing(out, tag="importing") as tmp:
+            writer = RunWriter(tmp, compression_level=IMPORT_COMPRESSION)
+            try:
+                writer.on_start(start)
+                for s in segments:
+                    writer.on_segment(s)
+                writer.on_stop(RunStop("success", reason, float(samples["t"][-1]), n, 0, 0, 0.0))
+                trouble = writer.full or writer.broken or writer.close_error
+                if trouble:
+                    raise ImportFileError(f"cannot write {out}: {trouble}; nothing was written")
+            finally:
+                writer.discard()   # a failure: its file is removed (a closed one is left to be published)
+            with h5py.File(tmp, "a") as f:   # HDF5 opens by name: the file it opened must be the one written
+                if not same_file(f.id.get_vfd_handle(), tmp):
+                    raise ImportFileError(f"{tmp} was replaced while it was written; nothing was written")
+                g = f["samples"]
+                for name, values in {**samples, **{k: v for k, (v, _) in extras.items()}}.items():
+                    ds = g[name]
+                    ds.resize((n,))
+                    if _only_fill(values, ds.fillvalue):
+                        continue
+                    ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
+    except OutputExists as exc:
+        raise FileExistsError(str(exc)) from None
     return out
 
 

@@ -37,6 +37,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from tsa_bench.models.transient import decay, fit_decay, hold_curves
+from tsa_bench.outputs import write_text
 from tsa_bench.rundata import RunData
 
 FORMAT = "tsa-bench/load-strain-model"
@@ -183,7 +184,7 @@ def _bench(runs: list[RunData]) -> str | None:
 def save(model: LoadStrainModel, path: str | Path) -> None:
     import json
 
-    Path(path).write_text(json.dumps(model.as_json(), indent=1) + "\n", encoding="utf-8")
+    write_text(path, json.dumps(model.as_json(), indent=1) + "\n")
 
 
 def load(path: str | Path) -> LoadStrainModel:

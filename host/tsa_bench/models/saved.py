@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tsa_bench.outputs import write_text
+
 FORMAT = "tsa-bench/model"
 FORMAT_VERSION = "1.0"
 MODEL_NAMES = ("preisach", "polynomial", "strain-resistance", "self-sensing", "twist-heat-additive",
@@ -73,9 +75,7 @@ def param(value: Any, unit: str) -> dict[str, Any]:
 
 
 def save_model(saved: SavedModel, path: str | Path) -> Path:
-    path = Path(path)
-    path.write_text(json.dumps(saved.as_json(), indent=1, allow_nan=True) + "\n", encoding="utf-8")
-    return path
+    return write_text(path, json.dumps(saved.as_json(), indent=1, allow_nan=True) + "\n")
 
 
 def load_model_file(path: str | Path) -> SavedModel:

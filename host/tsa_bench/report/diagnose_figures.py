@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.outputs import save_figure
+
 OUTPUTS = ("length", "resistance")
 OUTPUT_UNITS = {"length": "mm", "resistance": "ohm"}
 _MAX_PLOT_BINS = 2000
@@ -141,7 +143,7 @@ def write_figures(result: Any, out_dir: str | Path) -> dict[str, Path]:
         ax.set_xlabel(xlabel)
     fig.tight_layout()
     paths["fit"] = out / "fit.png"
-    fig.savefig(paths["fit"], dpi=100)
+    save_figure(fig, paths["fit"], dpi=100)
     plt.close(fig)
 
     # residuals.png: residual (measured - simulated) before and after
@@ -162,7 +164,7 @@ def write_figures(result: Any, out_dir: str | Path) -> dict[str, Path]:
     axes[-1][0].set_xlabel(xlabel)
     fig.tight_layout()
     paths["residuals"] = out / "residuals.png"
-    fig.savefig(paths["residuals"], dpi=100)
+    save_figure(fig, paths["residuals"], dpi=100)
     plt.close(fig)
 
     # cause.png: residual before (and after) against the named cause's signal
@@ -190,7 +192,7 @@ def write_figures(result: Any, out_dir: str | Path) -> dict[str, Path]:
             ax.legend(loc="best", fontsize=7, markerscale=3)
         fig.tight_layout()
         paths["cause"] = out / "cause.png"
-        fig.savefig(paths["cause"], dpi=100)
+        save_figure(fig, paths["cause"], dpi=100)
         plt.close(fig)
     return paths
 

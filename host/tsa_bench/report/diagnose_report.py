@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.outputs import write_text
 from tsa_bench.report.diagnose_figures import OUTPUT_UNITS, decimate_minmax, write_figures
 from tsa_bench.report.diagnose_text import format_report
 
@@ -46,7 +47,7 @@ def write_json(result: Any, path: str | Path) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     data = result.to_json() if hasattr(result, "to_json") else dict(vars(result))
-    p.write_text(json.dumps(_jsonable(data), indent=2, allow_nan=False) + "\n")
+    write_text(p, json.dumps(_jsonable(data), indent=2, allow_nan=False) + "\n")
     return p
 
 
@@ -55,6 +56,6 @@ def write_report(result: Any, runs: Sequence[Any], out_dir: str | Path) -> dict[
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"report": out / "report.txt"}
-    paths["report"].write_text(format_report(result, runs))
+    write_text(paths["report"], format_report(result, runs))
     paths.update(write_figures(result, out))
     return paths

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tsa_bench.outputs import save_figure
 from tsa_bench.rundata import RunData
 
 DPI = 150
@@ -82,8 +83,9 @@ def grams(load_n: float) -> str:
 
 
 def save(fig, path: Path, dpi: int = DPI, **kw) -> None:
-    """Write ``fig`` in the format of ``path``'s suffix (png, pdf, svg) at ``dpi`` (raster parts)."""
-    fig.savefig(path, dpi=dpi, **kw)
+    """Write ``fig`` in the format of ``path``'s suffix (png, pdf, svg) at ``dpi`` (raster parts),
+    as a new file (:func:`tsa_bench.outputs.save_figure`: an existing one only with --force)."""
+    save_figure(fig, path, dpi=dpi, **kw)
 
 
 def envelope(x: np.ndarray, y: np.ndarray, bins: int = ENVELOPE_BINS):

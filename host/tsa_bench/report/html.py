@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.outputs import write_text
 from tsa_bench.rundocs import SAMPLE_COLUMNS
 
 #: Root attributes shown first, in this order (docs/run-format.md).
@@ -139,5 +140,5 @@ def write_index(report) -> Path:
         parts.append(f"<h2>Protocol</h2><pre>{_e(run.protocol_text)}</pre>")
     parts.append("</body></html>\n")
     path = report.out_dir / "index.html"
-    path.write_text("\n".join(parts), encoding="utf-8")
+    write_text(path, "\n".join(parts))
     return path

@@ -14,8 +14,15 @@ Contract:
   difference Jacobian), then a short bounded Nelder-Mead polish with what is left of
   the budget. Each evaluation simulates the records' experiments on fresh copies of the
   presets (fixed seeds: the same noise every evaluation).
-* :func:`calibrate` runs the plan's fits in order, each starting from the results of
-  the earlier ones, and returns the new preset mappings and manipulator settings.
+  A fit is evaluated on several noise seeds at once (the residuals of every seed
+  stacked) when any of its parameters sets a noise level (:data:`NOISE_EFFECTS`): a
+  noise level fitted to one draw is fitted to that draw.
+* :func:`calibration_records` are the only records a calibration reads: the fits'
+  records. :func:`calibrate` refuses records the plan declares held out
+  (:class:`HeldOutError`), runs the plan's fits in order, each starting from the results
+  of the earlier ones, and returns the new preset mappings and manipulator settings. A
+  plant extension is kept or dropped by leave-one-out cross-validation within the fit's
+  own records (:func:`cross_validate_extension`), never by held-out records.
 * :func:`write_calibration` writes fitted values into the bench files (and
   configs/manipulator/thesis.yaml), keeping every other line and comment.
 """
@@ -110,6 +117,25 @@ def load_settings(bench_dir: Path = BENCH_DIR, manipulator_file: Path = MANIPULA
                     yaml.safe_load(manipulator_file.read_text(encoding="utf-8")))
 
 
+#: effects whose parameters are noise levels: a fit of one of them runs on several seeds
+NOISE_EFFECTS = ("sensor_noise", "length_settling", "resistance_settling")
+
+
+class HeldOutError(ValueError):
+    """A calibration was handed a record the plan declares held out."""
+
+
+def calibration_records(records: list[Record], plan: CalibrationPlan) -> list[Record]:
+    """The records the calibration may read: those some fit names, in record order (module contract)."""
+    fitted = set(plan.fitted_ids())
+    return [r for r in records if r.id in fitted]
+
+
+def is_noise_fit(fit: Fit) -> bool:
+    """Does a parameter of ``fit`` set a noise level (:data:`NOISE_EFFECTS`)?"""
+    return any(path.split(".")[:2][-1] in NOISE_EFFECTS for _, path in fit.parameters)
+
+
 def simulated_values(records: list[Record], lab: Lab) -> dict[str, float]:
     """Record id -> simulated value in the record's unit (NaN where it cannot be computed)."""
     out = {}
@@ -154,10 +180,16 @@ class FitResult:
 
 
 def run_fit(fit: Fit, records: list[Record], settings: Settings, seed: int = 0, maxfev: int = 200,
-            log: Callable[[str], None] | None = None) -> tuple[Settings, FitResult]:
-    """Fit ``fit``'s parameters to its records, starting from ``settings`` (module contract)."""
+            log: Callable[[str], None] | None = None, seeds: tuple[int, ...] | None = None
+            ) -> tuple[Settings, FitResult]:
+    """Fit ``fit``'s parameters to its records, starting from ``settings`` (module contract).
+
+    ``seeds``: the noise seeds every evaluation simulates (default: ``seed`` alone); the
+    residuals of all seeds are stacked, and :attr:`FitResult.residuals` are their means.
+    """
     by_id = {r.id: r for r in records}
     recs = [by_id[i] for i in fit.records]
+    seeds = tuple(seeds) if seeds else (seed,)
     space = _Space(fit.parameters)
     start = {k: settings.get(*k) for k in space.keys}
     cache: dict[tuple[float, ...], tuple[float, dict[str, float]]] = {}
@@ -171,18 +203,21 @@ def run_fit(fit: Fit, records: list[Record], settings: Settings, seed: int = 0, 
     def cost(u: np.ndarray) -> float:
         key = tuple(np.round(u, 6))
         if key not in cache:
-            sims = simulated_values(recs, apply(u).lab(seed=seed))
-            res = {r.id: residual(r, sims[r.id]) for r in recs}
-            c = float(sum(2.0 * (math.sqrt(1.0 + min(x * x, 1e6)) - 1.0) for x in res.values()))
-            cache[key] = (c, res)
+            s = apply(u)
+            stacked = []
+            for sd in seeds:
+                sims = simulated_values(recs, s.lab(seed=sd))
+                stacked.append({r.id: residual(r, sims[r.id]) for r in recs})
+            c = float(sum(2.0 * (math.sqrt(1.0 + min(x * x, 1e6)) - 1.0) for res in stacked for x in res.values()))
+            cache[key] = (c, stacked)
             if log is not None and len(cache) % 25 == 0:
                 log(f"  {fit.name}: {len(cache)} evaluations, cost {min(v[0] for v in cache.values()):.3f}")
         return cache[key][0]
 
     def residuals(u: np.ndarray) -> np.ndarray:
         cost(u)
-        res = cache[tuple(np.round(u, 6))][1]
-        return np.array([max(-1e3, min(1e3, res[r.id])) for r in recs])
+        stacked = cache[tuple(np.round(u, 6))][1]
+        return np.array([max(-1e3, min(1e3, res[r.id])) for res in stacked for r in recs])
 
     u0 = np.array([space.coord(i, start[k]) for i, k in enumerate(space.keys)])
     c0 = cost(u0)
@@ -204,7 +239,8 @@ def run_fit(fit: Fit, records: list[Record], settings: Settings, seed: int = 0, 
         if nm.fun < cost(best):
             best = nm.x
     cost(best)
-    c_best, resid = cache[tuple(np.round(best, 6))]
+    c_best, stacked = cache[tuple(np.round(best, 6))]
+    resid = {r.id: float(np.mean([res[r.id] for res in stacked])) for r in recs}
     out = apply(best)
     values = {k: space.value(i, float(best[i])) for i, k in enumerate(space.keys)}
     return out, FitResult(fit, start, values, c0, c_best, len(cache), resid)
@@ -212,11 +248,13 @@ def run_fit(fit: Fit, records: list[Record], settings: Settings, seed: int = 0, 
 
 @dataclass
 class ExtensionReport:
-    """A plant extension judged on the held-out records: fitted without it, then with it."""
+    """A plant extension judged by leave-one-out cross-validation within the fit's records:
+    each record left out in turn, the fit run without and with the extension on the
+    others, the left-out record's residual (mean over the fit's seeds) compared."""
 
     fit: str
     effect: str
-    held_out: list[str]
+    records: list[str]
     agree_without: int
     agree_with: int
     residual_without: float
@@ -224,12 +262,39 @@ class ExtensionReport:
     kept: bool
 
 
-def held_out_residuals(records: list[Record], plan: CalibrationPlan, settings: Settings,
-                       seed: int = 0) -> dict[str, float]:
-    """Residual of every held-out record that has a measure (module contract of :func:`residual`)."""
-    recs = [r for r in records if r.measure is not None and plan.role(r.id) == "held-out"]
-    sims = simulated_values(recs, settings.lab(seed=seed))
-    return {r.id: residual(r, sims[r.id]) for r in recs}
+def cross_validate_extension(fit: Fit, records: list[Record], settings: Settings, seeds: tuple[int, ...],
+                             maxfev: int, log: Callable[[str], None] | None = None) -> ExtensionReport:
+    """Leave-one-out cross-validation of ``fit``'s extension on ``fit``'s own records (module contract).
+
+    ``settings`` has the extension's parameters at 0. For each record of the fit, the
+    parameters are fitted without the extension, then with it (from the result without),
+    on the other records, and the left-out record's residual is computed both ways. The
+    extension is kept when more left-out records agree with it (|residual| <= 1; ties:
+    smaller summed |residual|, each capped at 10).
+    """
+    effect, keys = fit.extension
+    by_id = {r.id: r for r in records}
+    a0 = a1 = 0
+    c0 = c1 = 0.0
+    for rid in fit.records:
+        rest = [x for x in fit.records if x != rid]
+        base = Fit(f"{fit.name} (without {effect}, {rid} left out)",
+                   {k: v for k, v in fit.parameters.items() if k not in keys}, rest)
+        s0, _ = run_fit(base, records, settings, maxfev=maxfev, seeds=seeds, log=log)
+        s1, _ = run_fit(Fit(f"{fit.name} ({rid} left out)", fit.parameters, rest), records, s0, maxfev=maxfev,
+                        seeds=seeds, log=log)
+        r0 = float(np.mean([residual(by_id[rid], simulated_values([by_id[rid]], s0.lab(seed=sd))[rid])
+                            for sd in seeds]))
+        r1 = float(np.mean([residual(by_id[rid], simulated_values([by_id[rid]], s1.lab(seed=sd))[rid])
+                            for sd in seeds]))
+        a0 += abs(r0) <= 1
+        a1 += abs(r1) <= 1
+        c0 += min(abs(r0), 10.0)
+        c1 += min(abs(r1), 10.0)
+        if log is not None:
+            log(f"  cross-validation {effect}, {rid} left out: residual {r0:+.2f} without, {r1:+.2f} with")
+    kept = a1 > a0 or (a1 == a0 and c1 < c0)
+    return ExtensionReport(fit.name, effect, list(fit.records), a0, a1, c0, c1, kept)
 
 
 def describe(result: FitResult) -> list[str]:
@@ -243,18 +308,25 @@ def describe(result: FitResult) -> list[str]:
 
 
 def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, seed: int = 0, maxfev: int = 200,
-              only: list[str] | None = None, passes: int = 2, log: Callable[[str], None] | None = None
-              ) -> tuple[Settings, list[FitResult], list[ExtensionReport]]:
+              only: list[str] | None = None, passes: int = 2, log: Callable[[str], None] | None = None,
+              noise_seeds: int = 5) -> tuple[Settings, list[FitResult], list[ExtensionReport]]:
     """Run the plan's fits in order, ``passes`` times (``only``: just the fits with these names).
 
+    ``records`` are the fits' records (:func:`calibration_records`); a record the plan
+    declares held out raises :class:`HeldOutError` before anything runs. A fit runs on
+    seed ``seed``, a noise fit (:func:`is_noise_fit`) on ``noise_seeds`` seeds from it.
     The fits share parameters through the records they touch (a twist play changes the
     strains the geometry was fitted to), so the sequence is repeated; later passes start
     from the earlier results and get half the evaluations. In the first pass a fit with an
-    ``extension`` is run with the extension's parameters held at 0 (no effect), then
-    with them free; the extension is kept when the held-out records agree
-    more often (ties: smaller summed |residual|), and a rejected extension stays out of
-    the later passes.
+    ``extension`` is judged by :func:`cross_validate_extension` (within its own records,
+    half the budget per fold), then fitted on all its records without the extension and,
+    when kept, with it; a rejected extension stays out of the later passes.
     """
+    held = sorted(r.id for r in records if plan.held_out is not None and r.id in plan.held_out)
+    if held:
+        shown = ", ".join(held[:5]) + (f" and {len(held) - 5} more" if len(held) > 5 else "")
+        raise HeldOutError(f"the calibration was given {len(held)} held-out record(s) ({shown}); "
+                           f"it reads only the fits' records ({plan.held_out_path})")
     results, extensions = [], []
     rejected: set[tuple[tuple[str, ...], str]] = set()
 
@@ -269,12 +341,14 @@ def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, 
             budget = fit.maxfev or maxfev
             budget = budget if n == 0 else max(10, budget // 2)
             name = fit.name if n == 0 else f"{fit.name} (pass {n + 1})"
-            say([f"fit '{name}': {len(fit.parameters)} parameters on {len(fit.records)} records"])
+            seeds = tuple(range(seed, seed + max(1, noise_seeds))) if is_noise_fit(fit) else (seed,)
+            say([f"fit '{name}': {len(fit.parameters)} parameters on {len(fit.records)} records, "
+                 f"{len(seeds)} seed{'s' if len(seeds) > 1 else ''}"])
             if fit.extension is None or n > 0:
                 f = Fit(name, {k: v for k, v in fit.parameters.items() if k not in rejected}, fit.records)
                 if not f.parameters:
                     continue
-                settings, result = run_fit(f, records, settings, seed=seed, maxfev=budget, log=log)
+                settings, result = run_fit(f, records, settings, maxfev=budget, log=log, seeds=seeds)
                 results.append(result)
                 say(describe(result))
                 continue
@@ -282,26 +356,23 @@ def calibrate(plan: CalibrationPlan, records: list[Record], settings: Settings, 
             settings = settings.copy()
             for k in keys:  # the extension's parameters are 0 (no effect) for the fit without it
                 settings.set(*k, 0.0)
+            report = cross_validate_extension(fit, records, settings, seeds, max(5, budget // 2), log=log)
+            extensions.append(report)
+            say([f"  extension {effect}: left-out records agreeing {report.agree_without} -> {report.agree_with} "
+                 f"of {len(report.records)}, summed |residual| {report.residual_without:.1f} -> "
+                 f"{report.residual_with:.1f}: {'kept' if report.kept else 'rejected'}"])
             base = Fit(f"{fit.name} (without {effect})", {k: v for k, v in fit.parameters.items() if k not in keys},
                        fit.records)
-            s_without, r_without = run_fit(base, records, settings, seed=seed, maxfev=budget, log=log)
-            s_with, r_with = run_fit(Fit(name, fit.parameters, fit.records), records, s_without, seed=seed,
-                                     maxfev=budget, log=log)
-            say(describe(r_without) + describe(r_with))
-            h0 = held_out_residuals(records, plan, s_without, seed)
-            h1 = held_out_residuals(records, plan, s_with, seed)
-            a0 = sum(abs(v) <= 1 for v in h0.values())
-            a1 = sum(abs(v) <= 1 for v in h1.values())
-            c0 = sum(min(abs(v), 10.0) for v in h0.values())
-            c1 = sum(min(abs(v), 10.0) for v in h1.values())
-            kept = a1 > a0 or (a1 == a0 and c1 < c0)
-            extensions.append(ExtensionReport(fit.name, effect, sorted(h0), a0, a1, c0, c1, kept))
-            say([f"  extension {effect}: held-out agreements {a0} -> {a1}, summed |residual| {c0:.1f} -> {c1:.1f}: "
-                 f"{'kept' if kept else 'rejected'}"])
-            if not kept:
+            settings, r_without = run_fit(base, records, settings, maxfev=budget, log=log, seeds=seeds)
+            results.append(r_without)
+            say(describe(r_without))
+            if report.kept:
+                settings, r_with = run_fit(Fit(name, fit.parameters, fit.records), records, settings,
+                                           maxfev=budget, log=log, seeds=seeds)
+                results.append(r_with)
+                say(describe(r_with))
+            else:
                 rejected.update(keys)
-            settings = s_with if kept else s_without
-            results += [r_without, r_with]
     return settings, results, extensions
 
 

@@ -6,9 +6,10 @@ agreement), clipped to +-10.
 
 Contract: :func:`write_figures` writes ``chapter<N>.png`` for every chapter with at
 least one simulated record into ``out_dir`` (Agg backend, no window) and returns the
-paths. Each record is one row, labelled with its id; colour = verdict, marker = role
-(fitted, held-out, built-from); rows that are not simulated are left out and counted in
-the title.
+paths. Each record is one row, labelled with its id, at its median over the seeds;
+colour = verdict, marker = role (held-out, fitted, built-from; the rows never counted --
+derived, duplicate, uninformative -- and the qualitative ones as crosses); rows that are
+not simulated are left out and counted in the title.
 """
 
 from __future__ import annotations
@@ -16,11 +17,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from tsa_bench.outputs import save_figure
 from tsa_bench.reproduce.records import Record
 from tsa_bench.reproduce.table import Row, residual
 
 COLOURS = {"agrees": "tab:green", "disagrees": "tab:red", "consistency-only": "tab:gray", "not computed": "k"}
-MARKERS = {"fitted": "s", "held-out": "o", "built-from": "D"}
+MARKERS = {"fitted": "s", "held-out": "o", "built-from": "D", "derived": "x", "duplicate": "x", "uninformative": "x",
+           "qualitative": "+"}
 CLIP = 10.0
 
 
@@ -56,12 +59,13 @@ def write_figures(records: list[Record], rows: list[Row], out_dir: str | Path) -
         ax.set_title(f"Thesis chapter {chapter}: {n['agrees']} agree, {n['disagrees']} disagree, "
                      f"{n['consistency-only']} consistency-only; held out: "
                      f"{sum(r.verdict == 'agrees' for r in held)}/{len(held)} agree; {skipped} not simulated\n"
-                     "filled circle = held out, open square = fitted, diamond = built from the record",
+                     "filled circle = held out, open square = fitted, diamond = built from the record, "
+                     "x = derived / duplicate / uninformative (never counted), + = qualitative",
                      fontsize=9)
         ax.grid(axis="x", alpha=0.3)
         fig.tight_layout()
         path = out / f"chapter{chapter}.png"
-        fig.savefig(path, dpi=100)
+        save_figure(fig, path, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths

@@ -17,6 +17,19 @@ Contract: :func:`load_plan` reads the plan and checks it against the records::
           effect: <effect name>
           parameters: [<preset>:<parameter path>, ...]   # among the parameters above
     reasons: {<record id>: <why the simulation does not match it>, ...}
+    derived:                          # optional: held-out records computed from fitted ones
+      <record id>: {from: [<record id>, ...], how: <how it follows from them>}
+    by_construction: {<record id>: <why the simulation cannot fail it>, ...}   # optional
+
+The held-out records are declared apart, before the calibration, in
+``held-out.yaml`` beside the plan (:data:`HELD_OUT_FILE`)::
+
+    held_out: [<record id>, ...]
+
+When that file exists, every simulated record must be exactly one of built-from,
+fitted or held out: a fit naming a held-out record, or a simulated record in none of
+the three, is an error. Without the file (a record directory of one's own) every record
+neither built-from nor fitted is held out.
 
 A preset is a bench file name (``sim-3ply`` = configs/bench/sim-3ply.yaml) or
 ``manipulator`` (configs/manipulator/thesis.yaml). A parameter path is a dotted path in
@@ -24,7 +37,10 @@ the preset's ``plant`` mapping (``radius_mm``, ``effects.string_compliance.stiff
 or in the manipulator file (``control.motor_rev_per_s_per_V``). A record is
 *built-from* when a parameter was typed in from it (the reproduction then only checks
 consistency and never counts it as agreement), *fitted* when a fit used it, and
-*held-out* otherwise. Every id must exist among the records; every problem raises
+*held-out* when the held-out file declares it. A ``derived`` record must name at least
+one fitted record it follows from (the table shows it and never counts it); a
+``by_construction`` record is one the simulation satisfies whatever its parameters (a
+protocol's duration). Every id must exist among the records; every problem raises
 :class:`~tsa_bench.reproduce.records.RecordsError` with file:line:col.
 """
 
@@ -35,11 +51,13 @@ from pathlib import Path
 
 from yaml import Node
 
-from tsa_bench.plan.errors import ErrorSink
+from tsa_bench.plan.errors import ErrorSink, PlanError
 from tsa_bench.plan.yamlnodes import Reader
 from tsa_bench.reproduce.records import RECORDS_DIR, Record, RecordsError, read_document
 
 PLAN_FILE = RECORDS_DIR / "calibration.yaml"
+HELD_OUT_NAME = "held-out.yaml"
+HELD_OUT_FILE = RECORDS_DIR / HELD_OUT_NAME
 MANIPULATOR = "manipulator"
 
 
@@ -63,14 +81,25 @@ class CalibrationPlan:
     fits: list[Fit]
     reasons: dict[str, str]
     path: str = ""
+    #: the declared held-out ids (None: no held-out file; every other record is held out)
+    held_out: frozenset[str] | None = None
+    held_out_path: str = ""
+    #: record id -> (the records it is computed from, at least one fitted; how)
+    derived: dict[str, tuple[tuple[str, ...], str]] = field(default_factory=dict)
+    #: record id -> why the simulation satisfies it whatever its parameters
+    by_construction: dict[str, str] = field(default_factory=dict)
 
     def role(self, record_id: str) -> str:
-        """'built-from', 'fitted' or 'held-out'."""
+        """The calibration role: 'built-from', 'fitted' or 'held-out'."""
         if any(record_id in m.values() for m in self.built_from.values()):
             return "built-from"
         if any(record_id in f.records for f in self.fits):
             return "fitted"
         return "held-out"
+
+    def fitted_ids(self) -> list[str]:
+        """Every record some fit uses, in plan order, once."""
+        return list(dict.fromkeys(rid for f in self.fits for rid in f.records))
 
     def built_from_parameters(self, record_id: str) -> list[str]:
         return [f"{preset} {path}" for preset, m in self.built_from.items() for path, rid in m.items()
@@ -110,9 +139,48 @@ def _record_id(reader: Reader, sink: ErrorSink, node: Node, where: str, ids: set
     return rid
 
 
-def load_plan(records: list[Record], path: str | Path | None = None) -> CalibrationPlan:
-    """Read and check the calibration plan against ``records`` (module contract)."""
+def _texts(reader: Reader, sink: ErrorSink, top: dict[str, Node], section: str, ids: set[str]) -> dict[str, str]:
+    """A ``{<record id>: <text>}`` section of the plan (absent: empty), each id checked."""
+    out: dict[str, str] = {}
+    for rid, vnode in (reader.mapping(top[section], section, _AnyKey()) or {}).items() if section in top else []:
+        text = reader.string(vnode, f"{section}.{rid}")
+        if rid not in ids:
+            sink.add(vnode, f"{section}.{rid}", f"no record with id {rid!r}")
+        elif text is not None:
+            out[rid] = " ".join(text.split())
+    return out
+
+
+def load_held_out(path: Path, ids: set[str]) -> dict[str, int]:
+    """The held-out file's ids -> their line (module contract); RecordsError on any problem."""
+    sink = ErrorSink(str(path))
+    reader = Reader(sink)
+    root = read_document(path, "held-out records", sink)
+    out: dict[str, int] = {}
+    if root is None:
+        if not sink.errors:
+            sink.add(None, "", "the held-out file is empty")
+        raise RecordsError(sink.errors)
+    top = reader.mapping(root, "", ("held_out",), ("held_out",)) or {}
+    for j, node in enumerate(reader.sequence(top["held_out"], "held_out", "record ids") or []
+                             if "held_out" in top else []):
+        rid = _record_id(reader, sink, node, f"held_out[{j}]", ids)
+        if rid is not None and rid in out:
+            sink.add(node, f"held_out[{j}]", f"{rid!r} is listed twice")
+        elif rid is not None:
+            out[rid] = node.start_mark.line + 1
+    if sink.errors:
+        raise RecordsError(sink.errors)
+    return out
+
+
+def load_plan(records: list[Record], path: str | Path | None = None,
+              held_out_path: str | Path | None = None) -> CalibrationPlan:
+    """Read and check the calibration plan (and the held-out file beside it, or
+    ``held_out_path``) against ``records`` (module contract)."""
     p = Path(path) if path is not None else PLAN_FILE
+    hp = Path(held_out_path) if held_out_path is not None else p.with_name(HELD_OUT_NAME)
+    held = load_held_out(hp, {r.id for r in records}) if hp.exists() else None
     sink = ErrorSink(str(p))
     reader = Reader(sink)
     ids = {r.id for r in records}
@@ -122,7 +190,7 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
         if not sink.errors:
             sink.add(None, "", "the plan is empty")
         raise RecordsError(sink.errors)
-    top = reader.mapping(root, "", ("built_from", "fits", "reasons"), ("fits",)) or {}
+    top = reader.mapping(root, "", ("built_from", "fits", "reasons", "derived", "by_construction"), ("fits",)) or {}
     built: dict[str, dict[str, str]] = {}
     if "built_from" in top:
         for preset, node in (reader.mapping(top["built_from"], "built_from", presets) or {}).items():
@@ -153,7 +221,10 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
         for j, rnode in enumerate(reader.sequence(fm["records"], f"{where}.records", "record ids") or []
                                   if "records" in fm else []):
             rid = _record_id(reader, sink, rnode, f"{where}.records[{j}]", ids)
-            if rid is not None:
+            if rid is not None and held is not None and rid in held:
+                sink.add(rnode, f"{where}.records[{j}]", f"{rid!r} is declared held out ({hp.name}:{held[rid]}); "
+                         "a held-out record cannot be fitted")
+            elif rid is not None:
                 fit.records.append(rid)
         if "maxfev" in fm:
             fit.maxfev = reader.integer(fm["maxfev"], f"{where}.maxfev", ge=5)
@@ -174,17 +245,39 @@ def load_plan(records: list[Record], path: str | Path | None = None) -> Calibrat
             if effect is not None and keys:
                 fit.extension = (effect, keys)
         fits.append(fit)
-    reasons: dict[str, str] = {}
-    if "reasons" in top:
-        for rid, vnode in (reader.mapping(top["reasons"], "reasons", _AnyKey()) or {}).items():
-            text = reader.string(vnode, f"reasons.{rid}")
+    reasons = _texts(reader, sink, top, "reasons", ids)
+    fitted = {rid for f in fits for rid in f.records}
+    derived: dict[str, tuple[tuple[str, ...], str]] = {}
+    if "derived" in top:
+        for rid, vnode in (reader.mapping(top["derived"], "derived", _AnyKey()) or {}).items():
+            where = f"derived.{rid}"
+            dm = reader.mapping(vnode, where, ("from", "how"), ("from", "how")) or {}
+            srcs = [_record_id(reader, sink, n, f"{where}.from[{j}]", ids)
+                    for j, n in enumerate(reader.sequence(dm["from"], f"{where}.from", "record ids") or []
+                                          if "from" in dm else [])]
+            how = reader.string(dm["how"], f"{where}.how") if "how" in dm else None
             if rid not in ids:
-                sink.add(vnode, f"reasons.{rid}", f"no record with id {rid!r}")
-            elif text is not None:
-                reasons[rid] = " ".join(text.split())
+                sink.add(vnode, where, f"no record with id {rid!r}")
+            elif rid in fitted:
+                sink.add(vnode, where, f"{rid!r} is itself fitted")
+            elif srcs and None not in srcs and not fitted.intersection(srcs):
+                sink.add(dm.get("from", vnode), f"{where}.from", "names no fitted record: a record computed only "
+                         "from held-out ones stays held out")
+            elif how is not None and srcs and None not in srcs:
+                derived[rid] = (tuple(s for s in srcs if s is not None), " ".join(how.split()))
+    by_construction = _texts(reader, sink, top, "by_construction", ids)
+    if held is not None:
+        built_ids = {rid for m in built.values() for rid in m.values()}
+        for rec in records:
+            if rec.measure is None or rec.id in fitted or rec.id in built_ids:
+                continue
+            if rec.id not in held:
+                sink.errors.append(PlanError(rec.file, rec.line, None, rec.id, "a simulated record neither "
+                                             f"built-from, fitted nor declared held out (add it to {hp})"))
     if sink.errors:
         raise RecordsError(sink.errors)
-    return CalibrationPlan(built, fits, reasons, str(p))
+    return CalibrationPlan(built, fits, reasons, str(p), frozenset(held) if held is not None else None,
+                           str(hp) if held is not None else "", derived, by_construction)
 
 
 def plan_or_empty(records: list[Record], path: str | Path | None = None) -> CalibrationPlan:
@@ -193,4 +286,5 @@ def plan_or_empty(records: list[Record], path: str | Path | None = None) -> Cali
     return load_plan(records, p) if p.exists() else CalibrationPlan({}, [], {}, "")
 
 
-__all__ = ["CalibrationPlan", "Fit", "load_plan", "plan_or_empty", "PLAN_FILE", "MANIPULATOR"]
+__all__ = ["CalibrationPlan", "Fit", "load_held_out", "load_plan", "plan_or_empty", "PLAN_FILE", "HELD_OUT_FILE",
+           "MANIPULATOR"]

@@ -298,10 +298,15 @@ class _FileReader:
         return {"kind": kind, "value": float(val) if kind != "sd" else unc["sd"], "basis": bases.get(basis, basis)}
 
 
+#: files of the records directory that hold no records
+NOT_RECORDS = ("calibration.yaml", "held-out.yaml")
+
+
 def record_files(directory: str | Path | None = None) -> list[Path]:
-    """The record files of a directory (default configs/thesis/), excluding the calibration plan."""
+    """The record files of a directory (default configs/thesis/), excluding the calibration plan
+    and the held-out declaration."""
     d = Path(directory) if directory is not None else RECORDS_DIR
-    return sorted(p for p in d.glob("*.yaml") if p.name != "calibration.yaml")
+    return sorted(p for p in d.glob("*.yaml") if p.name not in NOT_RECORDS)
 
 
 def load_records(paths: list[str | Path] | None = None) -> list[Record]:

@@ -97,10 +97,13 @@ def history(steps: list[tuple], dt_s: float = 0.1, load_g: float = 350.0,
             "segment": np.array(seg, np.int32)}
 
 
-def simulate_history(hist: dict[str, np.ndarray], preset: str = "sim", seed: int = 0,
+def simulate_history(hist: dict[str, np.ndarray], preset: str | dict[str, Any] = "sim", seed: int = 0,
                      settle_s: float = 1200.0) -> dict[str, np.ndarray]:
-    """Simulate ``hist`` on the preset's plant (noise seeded) after ``settle_s`` at the first input."""
-    plant = plant_from_config(preset_plant(preset), seed=seed)
+    """Simulate ``hist`` on the preset's plant (noise seeded) after ``settle_s`` at the first input.
+
+    ``preset``: a bench file name (configs/bench/<preset>.yaml) or a ``plant`` mapping itself.
+    """
+    plant = plant_from_config(preset_plant(preset) if isinstance(preset, str) else preset, seed=seed)
     if settle_s > 0:
         ts = np.arange(0.0, settle_s, 1.0)
         simulate(plant, ts, hist["turns"][0], hist["heater_voltage"][0], hist["load_g"][0],

@@ -12,14 +12,15 @@ it to a new file (never over an existing one) through a temporary name.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import yaml
 from yaml import MappingNode, ScalarNode, SequenceNode
 
 from tsa_bench.bench import BenchConfigError, parse_bench
+from tsa_bench.outputs import OutputExists, write_text
 from tsa_bench.userfiles import DocumentError, parse_yaml
-from tsa_bench.store.replace import replacing
 
 SECTIONS = {"position": "position_sensor", "resistance": "resistance_sensor"}
 
@@ -109,7 +110,7 @@ def write_new_bench(text: str, source: str, out: str | Path, quantity: str, resu
                     record: dict) -> Path:
     """Write the calibrated bench to ``out`` (module contract); returns its path."""
     path = Path(out)
-    if path.exists() or path.is_symlink():
+    if os.path.lexists(path):
         raise BenchWriteError(f"{path} already exists; choose another --out (bench files are never overwritten)")
     new = calibrated_text(text, source, quantity, result, record)
     try:
@@ -122,8 +123,10 @@ def write_new_bench(text: str, source: str, out: str | Path, quantity: str, resu
         if abs(got[key] - value) > 1e-9 * max(1.0, abs(value)):
             raise BenchWriteError(f"writing {key} failed: the new file reads {got[key]!r}, not {value!r}")
     try:
-        with replacing(path) as tmp:
-            tmp.write_text(new, encoding="utf-8")
+        write_text(path, new, force=False)
+    except OutputExists:
+        raise BenchWriteError(f"{path} already exists; choose another --out (bench files are never overwritten)") \
+            from None
     except OSError as exc:
         raise BenchWriteError(f"cannot write {path}: {exc.strerror or exc}") from None
     return path

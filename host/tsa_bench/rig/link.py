@@ -89,14 +89,20 @@ class RigLink:
         # every 1/16 watchdog of wall or device time (a simulation runs ahead of the wall clock)
         beat_s = max(0.05, self.identity.watchdog_ms / 16000.0)
         if (time.monotonic() - max(self._last_beat_wall, self.client.last_tx_wall) >= beat_s
-                or (self.now_us - self._last_beat_us) / 1e6 >= beat_s):
+                or (self._device_now_us() - self._last_beat_us) / 1e6 >= beat_s):
             self.heartbeat()
         return got
+
+    def _device_now_us(self) -> int:
+        """The device's clock: read from an in-process simulation (which says nothing while
+        a move runs with sampling off), else the latest time the device reported."""
+        now = self.client.device_now_us
+        return self.now_us if now is None else now
 
     def heartbeat(self) -> None:
         self.client.command(msg.Heartbeat(), check=False)
         self._last_beat_wall = time.monotonic()
-        self._last_beat_us = self.now_us
+        self._last_beat_us = self._device_now_us()
 
     def status(self) -> msg.QueueStatus:
         """A fresh QUEUE_STATUS (HEARTBEAT and its answer)."""

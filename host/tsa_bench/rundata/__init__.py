@@ -20,7 +20,19 @@ __all__ = ["RunData"]
 
 @dataclass(frozen=True)
 class RunData:
-    """One run in memory. ``samples[name]`` are equal-length arrays in ``units[name]``."""
+    """One run in memory. ``samples[name]`` are equal-length arrays in ``units[name]``.
+
+    ``path``: the file it was read from (or a ``<...>`` name for a run built in memory).
+    ``attrs``: the file's root attributes (``format``, ``exit_status``, ``reason``,
+    ``backend``, ``created``, ...). ``samples``: every sample column, at least ``t`` (s,
+    device time since the run started, strictly increasing), ``turns`` (turn), ``length``
+    (mm), ``resistance`` (ohm, NaN while not measured), ``heater_voltage`` (V), ``load``
+    (N), ``segment`` (plan index, -1 outside any) and ``motor_moving`` (0/1); extra columns
+    (imported channels, tracking state) with their units in ``units``. ``segments`` and
+    ``events``: the tables (module docstring) or None. ``protocol_text`` and ``bench_text``:
+    the YAML as run ("" when the file has none). ``extra``: what the reader noted (e.g.
+    ``truncated_rows`` of a run killed mid-write).
+    """
 
     path: str
     attrs: dict[str, Any]
@@ -37,8 +49,10 @@ class RunData:
 
     @property
     def t_s(self) -> np.ndarray:
+        """Sample times, s of device time since the run started."""
         return self.samples["t"]
 
     @property
     def exit_status(self) -> str:
+        """"success", "aborted", "failed", or "running" for a run killed mid-write ("" if unset)."""
         return str(self.attrs.get("exit_status", ""))

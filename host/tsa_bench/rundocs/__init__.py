@@ -98,7 +98,9 @@ class EventRecord:
 
 @dataclass(frozen=True)
 class RunStop:
-    """How the run ended. ``exit_status`` is "success", "aborted" or "failed"."""
+    """How the run ended. ``exit_status`` is "success", "aborted" or "failed", ``reason`` says
+    why (empty on success); ``t_end`` s of device time; ``samples`` stored, ``samples_lost``
+    (counter gaps), ``segments_done``; ``wall_time_s`` s the run took."""
 
     exit_status: str
     reason: str

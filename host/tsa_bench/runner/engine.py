@@ -94,7 +94,17 @@ class RunFailed(Exception):
 
 
 class Runner:
-    """Runs one plan on a connected :class:`BenchClient`; see the module contract."""
+    """Runs one plan on a connected :class:`~tsa_bench.device.BenchClient`; see the module contract.
+
+    ``client`` must be connected (``ValueError`` otherwise); ``plan`` compiled under
+    ``bench.limits``; ``consumers`` get the run documents in order (a
+    :class:`~tsa_bench.store.RunWriter` writes the file); ``operator`` answers prompts, an
+    :class:`~tsa_bench.operator.channel.OperatorChannel` (``AutoOperator`` on a simulated
+    bench, ``TerminalOperator`` at a real rig).
+    ``backend`` ("sim", "serial", "simavr") and ``port_name`` are recorded in the run file;
+    ``metadata`` adds to the protocol's; ``block_samples`` rows per
+    :class:`~tsa_bench.rundocs.SampleBlock`. One Runner runs once.
+    """
 
     def __init__(self, client: BenchClient, plan: Plan, bench: BenchConfig, consumers: Sequence[RunConsumer],
                  operator: Operator, *, backend: str, port_name: str, interrupts: Interrupts | None = None,
@@ -199,6 +209,9 @@ class Runner:
 
     # -- main loop -----------------------------------------------------------
     def run(self) -> RunStop:
+        """Run the plan to its end, an abort or a failure (module contract); return the
+        :class:`~tsa_bench.rundocs.RunStop` every consumer also got. Device faults and a lost
+        connection end the run "failed" rather than raise."""
         wall0 = time.monotonic()
         plan = self.plan
         summary = plan.summary()

@@ -312,10 +312,10 @@ def plant_from_config(plant_cfg: Mapping[str, Any], seed: int | None = None, fus
     """
     where = "plant"
     check_keys(plant_cfg, PLANT_KEYS, where)
+    cfg_seed = plant_cfg.get("seed")   # checked even when ``seed`` overrides it: `validate` refuses what `run` would
+    if cfg_seed is not None and (isinstance(cfg_seed, bool) or not isinstance(cfg_seed, int) or cfg_seed < 0):
+        raise ValueError(f"{where}: 'seed' must be an integer >= 0 or null, got {cfg_seed!r}")
     if seed is None:
-        cfg_seed = plant_cfg.get("seed")
-        if cfg_seed is not None and (isinstance(cfg_seed, bool) or not isinstance(cfg_seed, int)):
-            raise ValueError(f"{where}: 'seed' must be an integer or null, got {cfg_seed!r}")
         seed = cfg_seed
     items = plant_cfg.get("effects")
     if items is None:

@@ -1,14 +1,18 @@
 """A copy of a run file with a computed column added (a model's prediction, say).
 
 Contract: :func:`write_with_column` never changes the recorded file. It copies it to a
-temporary name beside ``out``, adds ``/samples/<name>`` (as long as the other columns,
-with ``units`` and the given attributes; ``t`` attached as its dimension scale) and the
-root attribute ``derived_from`` (the source file's name), then renames it to ``out``.
-An existing ``out`` is never replaced, and a column name the file already has is refused.
+random temporary name beside ``out`` (created exclusively, never through a link; the file
+HDF5 then opens is checked to be that one), adds ``/samples/<name>`` (as long as the other
+columns, with ``units`` and the given attributes; ``t`` attached as its dimension scale)
+and the root attribute ``derived_from`` (the source file's name), then gives it the name
+``out`` (:mod:`tsa_bench.outputs`). An existing ``out`` is replaced only when replacing
+is allowed (``--force``; never the recorded run itself), and a column name the file
+already has is refused.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 from typing import Any
@@ -16,7 +20,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from tsa_bench.store.replace import replacing
+from tsa_bench.outputs import OutputExists, open_new, writing
 
 
 class DerivedFileError(ValueError):
@@ -27,14 +31,17 @@ def write_with_column(source: str | Path, out: str | Path, name: str, values: np
                       attrs: dict[str, Any] | None = None) -> Path:
     """Write ``out`` = ``source`` + ``/samples/<name>`` (module contract)."""
     src, dst = Path(source), Path(out)
-    if dst.exists() or dst.is_symlink():
-        raise DerivedFileError(f"{dst} already exists; choose another file (nothing is overwritten)")
     if dst.resolve() == src.resolve():
         raise DerivedFileError(f"{dst} is the recorded run itself; write the prediction to another file")
     try:
-        with replacing(dst) as tmp:
-            shutil.copyfile(src, tmp)
+        with writing(dst, hint="give --force to replace it, or choose another file") as tmp:
+            with open_new(tmp) as copy, open(src, "rb") as original:
+                shutil.copyfileobj(original, copy)
+                made = os.fstat(copy.fileno())
             with h5py.File(tmp, "a") as f:
+                opened = os.fstat(f.id.get_vfd_handle())
+                if (opened.st_dev, opened.st_ino) != (made.st_dev, made.st_ino):
+                    raise DerivedFileError(f"{tmp} was replaced while it was written; nothing was written")
                 g = f["samples"]
                 if name in g:
                     raise DerivedFileError(f"{src} already has /samples/{name}")
@@ -48,6 +55,8 @@ def write_with_column(source: str | Path, out: str | Path, name: str, values: np
                 if g["t"].is_scale:
                     ds.dims[0].attach_scale(g["t"])
                 f.attrs["derived_from"] = src.name
+    except OutputExists as exc:
+        raise DerivedFileError(str(exc)) from None
     except OSError as exc:
         raise DerivedFileError(f"cannot write {dst}: {exc.strerror or exc}") from None
     return dst

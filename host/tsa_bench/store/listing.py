@@ -2,8 +2,9 @@
 
 Contract: :func:`list_runs` looks at the ``*.h5`` regular files directly in a folder
 (sorted by name, which starts with the run's date) and reads of each only its root
-attributes and the lengths of ``/samples/t`` and ``/segments`` (never the data, so a
-folder of long runs lists at once): status, plan, device duration, samples, segments
+attributes, the lengths of ``/samples/t`` and ``/segments`` and the ``completed`` flags
+of ``/segments`` (within the memory budget; never the sample data, so a folder of long runs
+lists at once): status, plan, device duration, samples, segments
 completed, the link to a run it resumes or that continues it. A run whose live sidecar
 is still written by a living process is "recording"; a killed one (status "running",
 writer gone) is "killed". A file that is not a readable run file is listed with why.
@@ -17,6 +18,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from tsa_bench.store.budget import OverBudget, check_budget
 from tsa_bench.userfiles import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import FORMAT
 from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
@@ -77,7 +79,9 @@ def _one(path: Path) -> RunLine:
             samples = f["samples/t"].shape[0] if "samples/t" in f else 0
             segs = ""
             if "segments" in f and f["segments"].dtype.names and "completed" in f["segments"].dtype.names:
-                segs = str(int(np.count_nonzero(f["segments"]["completed"][()])))
+                seg = f["segments"]
+                check_budget(float(seg.shape[0]) * seg.dtype.itemsize, str(path), "/segments")
+                segs = str(int(np.count_nonzero(seg["completed"][()])))
                 if "n_segments" in a:
                     segs += f"/{int(a['n_segments'])}"
             duration = float(a["duration_s"]) if "duration_s" in a else (
@@ -89,6 +93,8 @@ def _one(path: Path) -> RunLine:
                 link = (link + "; " if link else "") + f"continued in {_text(a['continued_in'])}"
             return RunLine(path, "killed" if status == "running" else status, _text(a.get("plan_name", "")),
                            duration, samples, segs, _text(a.get("created", "")), link)
+    except OverBudget as exc:
+        return RunLine(path, "?", problem=str(exc).removeprefix(f"{path}: "))
     except Exception as exc:  # h5py reports damaged files with many exception types
         return RunLine(path, "?", problem=f"not a readable HDF5 file ({type(exc).__name__})")
 

@@ -3,12 +3,17 @@
 Why: a damaged HDF5 file (a few flipped bytes in a global heap, say) can make the HDF5
 library itself loop forever or allocate without bound inside one attribute read; no
 Python-level check can interrupt a C loop. So before a command opens a file it did not
-write, :func:`check_hdf5_terminates` forks a child that reads what the readers will read
-(every attribute, every dataset's type and shape, the small tables and strings in full,
-the first and last row of the long columns), under a memory limit, and waits at most
-``timeout_s``. The reads are deterministic: if the child finishes, the parent's own reads
-of the same objects finish too; if it hangs, runs out of memory or crashes, the file is
-refused with a message saying so, and nothing else is touched.
+write, :func:`check_hdf5_terminates` forks a child that reads the file's structure (every
+attribute, every dataset's type and shape and its whole chunk index, the scalar texts, the
+text and table datasets in full up to :data:`WHOLE_ROWS` rows, the first and last row of
+every other dataset: metadata and bounded slices only, never a long column's data), under
+a memory limit and a CPU-time limit (:data:`CPU_LIMIT_S`: the library looping on a damaged
+heap is stopped after that much CPU, however busy the machine), and waits at most
+``timeout_s`` of wall time (a child blocked without using CPU). The reads are deterministic:
+if the child finishes, the parent's own reads of the same objects finish too; if it hangs,
+runs out of memory or crashes, the file is refused with a message saying so, and nothing
+else is touched. A verdict is remembered for the same file (device, inode, size, time of
+change) for the life of the process, so a command that reads a file twice pays once.
 
 Contract: returns None when the child finished (whatever it found: ordinary errors, like a
 missing dataset, are left to the caller's reader and its messages); otherwise the reason,
@@ -25,16 +30,20 @@ import threading
 import time
 from pathlib import Path
 
-#: How long the child may take (s); reading a run file's metadata takes milliseconds.
+#: How long the child may take (s of wall time); reading a run file's metadata takes milliseconds.
 TIMEOUT_S = 20.0
+#: CPU time the child may use (s, whole seconds: RLIMIT_CPU); a healthy file takes well under 0.1 s.
+CPU_LIMIT_S = 1
 #: Address-space limit of the child (bytes): a damaged heap must not take the machine.
 MEMORY_LIMIT_BYTES = 4 << 30
 #: Objects visited at most (groups and datasets); a run file has a few dozen.
 MAX_OBJECTS = 10_000
-#: A dataset smaller than this (bytes) is read whole; larger ones only at their ends.
-WHOLE_BYTES = 16 << 20
+#: A text or table dataset (strings, compound rows) with at most this many rows is read whole
+#: (its strings live in heaps a damaged file can make the library loop on); others only at their ends.
+WHOLE_ROWS = 100_000
 
 _EXIT_DONE, _EXIT_MEMORY = 0, 3
+_verdicts: dict[tuple[int, int, int, int], str | None] = {}
 
 
 def _read_everything_small(path: Path) -> None:
@@ -55,7 +64,10 @@ def _read_everything_small(path: Path) -> None:
             if isinstance(obj, h5py.Dataset):
                 if obj.shape is None:
                     return
-                if obj.ndim == 0 or obj.size * max(obj.dtype.itemsize, 1) <= WHOLE_BYTES:
+                if obj.chunks is not None:
+                    obj.id.get_num_chunks()   # walks the whole chunk index (a cycle would loop here)
+                texts = obj.dtype.kind in "OSUV" or obj.dtype.names is not None
+                if obj.ndim == 0 or (texts and obj.ndim == 1 and obj.shape[0] <= WHOLE_ROWS):
                     obj[()]
                 elif obj.size:
                     first = (0,) * obj.ndim
@@ -78,6 +90,10 @@ def _child(path: Path) -> None:
         soft, hard = resource.getrlimit(resource.RLIMIT_AS)
         limit = MEMORY_LIMIT_BYTES if hard == resource.RLIM_INFINITY else min(MEMORY_LIMIT_BYTES, hard)
         resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+        soft, hard = resource.getrlimit(resource.RLIMIT_CPU)
+        used = int(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]))   # a forked child inherits the count
+        cpu = used + CPU_LIMIT_S if hard == resource.RLIM_INFINITY else min(used + CPU_LIMIT_S, hard)
+        resource.setrlimit(resource.RLIMIT_CPU, (cpu, hard))
     except (ImportError, ValueError, OSError):
         pass
     try:
@@ -96,8 +112,21 @@ def check_hdf5_terminates(path: str | Path, timeout_s: float | None = None) -> s
     """
     if not hasattr(os, "fork"):
         return None
-    timeout_s = TIMEOUT_S if timeout_s is None else timeout_s
     p = Path(path)
+    try:
+        st = os.stat(p)
+        key = (st.st_dev, st.st_ino, st.st_size, st.st_ctime_ns)
+    except OSError:
+        key = None
+    if key is not None and key in _verdicts:
+        return _verdicts[key]
+    verdict = _check(p, TIMEOUT_S if timeout_s is None else timeout_s)
+    if key is not None:
+        _verdicts[key] = verdict
+    return verdict
+
+
+def _check(p: Path, timeout_s: float) -> str | None:
     if threading.active_count() > 1:
         # another thread may hold h5py's or HDF5's lock at the fork and the child would wait
         # on it for ever: a fresh interpreter instead (slower: it imports h5py)
@@ -130,6 +159,9 @@ def check_hdf5_terminates(path: str | Path, timeout_s: float | None = None) -> s
 
 def _verdict(code: int) -> str | None:
     """The reason for a child's exit code (negative: killed by that signal)."""
+    if code in (-signal.SIGXCPU, -signal.SIGKILL):   # SIGKILL: past the hard CPU limit
+        return (f"damaged HDF5 file: reading its metadata did not finish within {CPU_LIMIT_S} s of CPU time "
+                "(the HDF5 library loops on it)")
     if code < 0:
         return f"damaged HDF5 file: the HDF5 library crashed reading it (signal {-code})"
     if code == _EXIT_MEMORY:

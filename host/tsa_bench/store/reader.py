@@ -18,10 +18,19 @@ whose one-line message names the file and exactly what is wrong:
   :data:`MAX_ABS_VALUE` or infinite in a float column (NaN means "not measured" and is
   kept);
 * ``/segments`` or ``/events`` that are not 1-D tables with the contract's fields of
-  the right kinds, segment indices outside 0..:data:`MAX_SEGMENT_INDEX` (or -1); in the
+  the right kinds, segment indices outside 0 to :data:`MAX_SEGMENT_INDEX` (or -1); in the
   coded layout of format 1.2, a ``kind_names`` attribute that is not a JSON list of texts,
   a /segment_texts that is not a 1-D text dataset, or a code naming no kind or text;
-* damaged datasets or attributes that HDF5 cannot read.
+* damaged datasets or attributes that HDF5 cannot read;
+* more data than the memory budget (:mod:`tsa_bench.store.budget`): the rows x bytes
+  per value its datasets declare are added up before any data is read.
+
+A file whose ``exit_status`` is still "running" (a run killed mid-write) is read as far
+as it was written: each column and table up to its last chunk that was stored whole and
+decodes (a kill inside a flush can leave the declared length ahead of the stored chunks,
+or an index pointing past the file's recorded end); ``RunData.extra["truncated_rows"]``
+says how many declared rows were cut. :func:`tsa_bench.store.recover.recover_run` then
+finishes such a file from the run's journal.
 
 It returns a :class:`~tsa_bench.rundata.RunData` holding every sample column (required and extra), the
 segment and event tables normalised to one in-memory layout, :data:`SEGMENT_DTYPE`
@@ -41,6 +50,7 @@ import h5py
 import numpy as np
 
 from tsa_bench.rundata import RunData
+from tsa_bench.store.budget import OverBudget, check_budget
 from tsa_bench.userfiles import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import EVENT_DTYPE, FORMAT, SEGMENT_DTYPE, SEGMENT_ROW_DTYPE
 from tsa_bench.store.probe import check_hdf5_terminates
@@ -88,8 +98,13 @@ def _plain(value: Any) -> Any:
 class _File:
     """Checked access to one open file; every problem raises RunFileError naming it."""
 
-    def __init__(self, path: Path, f: h5py.File) -> None:
+    def __init__(self, path: Path, f: h5py.File, running: bool = False) -> None:
         self.path, self.f = path, f
+        self.running = running   # a killed run's file: read each dataset as far as it was stored
+
+    def rows(self, ds: h5py.Dataset) -> int:
+        """Rows of a 1-D dataset to read: all, or in a killed run's file the stored ones."""
+        return stored_rows(ds) if self.running else int(ds.shape[0])
 
     def fail(self, message: str) -> RunFileError:
         return RunFileError(f"{self.path}: {message}")
@@ -145,7 +160,7 @@ class _File:
         for key, kinds in {**required, **{k: v[0] for k, v in optional.items()}}.items():
             if key in fields and ds.dtype[key].kind not in kinds:
                 raise self.fail(f"/{name} field '{key}' has the wrong type ({ds.dtype[key]})")
-        raw = ds[()]
+        raw = ds[:self.rows(ds)]
         out = np.zeros(len(raw), dtype=dtype)
         for key in dtype.names:
             if key in fields:
@@ -186,6 +201,8 @@ def _samples(f: _File, exit_status: str) -> tuple[dict[str, np.ndarray], dict[st
         raise f.fail(f"/samples lacks the required column(s) {missing} (required: {', '.join(REQUIRED_COLUMNS)})")
     samples: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
+    declared: dict[str, int] = {}
+    _check_memory(f, group)
     for name in list(group):
         ds = f.member(f"samples/{name}")
         shown = _clean(name)
@@ -195,7 +212,8 @@ def _samples(f: _File, exit_status: str) -> tuple[dict[str, np.ndarray], dict[st
             raise f.fail(f"/samples/{shown} has {ds.shape[0]:,} rows, more than the {MAX_SAMPLES:,} read")
         unit = _plain(ds.attrs["units"]) if "units" in ds.attrs else ""
         units[shown] = unit if isinstance(unit, str) else str(unit)
-        samples[shown] = ds[()]
+        samples[shown] = ds[:f.rows(ds)]
+        declared[shown] = int(ds.shape[0])
     for name, expected in REQUIRED_COLUMNS.items():
         if units[name] != expected:
             raise f.fail(f"/samples/{name} has units {units[name]!r}, the contract says {expected!r}")
@@ -205,8 +223,9 @@ def _samples(f: _File, exit_status: str) -> tuple[dict[str, np.ndarray], dict[st
         if exit_status != "running":
             raise f.fail(f"/samples columns differ in length: {lengths}")
         n = min(lengths.values())  # killed mid-write: keep the rows every column has
-        extra["truncated_rows"] = max(lengths.values()) - n
         samples = {name: a[:n] for name, a in samples.items()}
+    if exit_status == "running" and declared and max(declared.values()) > len(samples["t"]):
+        extra["truncated_rows"] = max(declared.values()) - len(samples["t"])
     for name, a in samples.items():
         if a.dtype.kind == "f":
             _check_floats(f, a, f"/samples/{name}")
@@ -221,10 +240,63 @@ def _samples(f: _File, exit_status: str) -> tuple[dict[str, np.ndarray], dict[st
     return samples, units, extra
 
 
+def stored_rows(ds: h5py.Dataset) -> int:
+    """Rows of a killed run's 1-D dataset that were stored and decode: up to the first chunk
+    missing from its index (the declared length can be ahead of the chunks), then back to
+    the last chunk that reads (an index written before the file's recorded end was)."""
+    n = int(ds.shape[0])
+    if n == 0:
+        return 0
+    if ds.chunks is None:
+        return n if _reads(ds, 0, n) else 0
+    c = int(ds.chunks[0])
+    try:
+        k = ds.id.get_num_chunks()
+        starts = {int(ds.id.get_chunk_info(i).chunk_offset[0]) for i in range(min(k, n // c + 2))}
+    except (OSError, RuntimeError, ValueError):
+        return 0
+    rows = 0
+    while rows < n and rows in starts:
+        rows += c
+    rows = min(rows, n)
+    while rows > 0:
+        first = (rows - 1) // c * c
+        if _reads(ds, first, rows):
+            break
+        rows = first
+    return rows
+
+
+def _reads(ds: h5py.Dataset, lo: int, hi: int) -> bool:
+    try:
+        ds[lo:hi]
+        return True
+    except (OSError, RuntimeError, ValueError, KeyError):
+        return False
+
+
+def _check_memory(f: _File, group: h5py.Group) -> None:
+    """The budget check: rows x bytes per value of everything the reader will load."""
+    needed = 0.0
+    for name in list(group):
+        ds = group.get(name, getlink=True)
+        if isinstance(ds, h5py.HardLink):
+            obj = group[name]
+            if isinstance(obj, h5py.Dataset) and obj.shape is not None:
+                needed += float(np.prod(obj.shape, dtype=float)) * obj.dtype.itemsize
+    for name, per_row in (("segments", SEGMENT_DTYPE.itemsize), ("events", EVENT_DTYPE.itemsize),
+                          ("segment_texts", 64)):
+        ds = f.member(name)
+        if isinstance(ds, h5py.Dataset) and ds.shape is not None:
+            needed += float(np.prod(ds.shape, dtype=float)) * (ds.dtype.itemsize + per_row)
+    check_budget(needed, str(f.path), "its samples and tables")
+
+
 def _read(f: _File) -> RunData:
     attrs = f.attrs()
     if attrs.get("format") != FORMAT:
         raise f.fail(f"root attribute 'format' is {attrs.get('format')!r}, expected {FORMAT!r}")
+    f.running = attrs.get("exit_status") == "running"
     samples, units, extra = _samples(f, str(attrs.get("exit_status", "")))
     segments = _coded_segments(f)
     if segments is None:
@@ -266,14 +338,16 @@ def _coded_segments(f: _File) -> np.ndarray | None:
                      f"got {_describe(texts_ds) if texts_ds is not None else 'nothing'}")
     if texts_ds.shape[0] > MAX_SAMPLES:
         raise f.fail(f"/segment_texts has {texts_ds.shape[0]:,} rows, more than {MAX_SAMPLES:,}")
-    raw = ds[()]
-    texts = np.array([v if isinstance(v, bytes) else str(v).encode("utf-8", "replace") for v in texts_ds[()]]
-                     + [b""], dtype=object)
+    raw = ds[:f.rows(ds)]
+    texts = np.array([v if isinstance(v, bytes) else str(v).encode("utf-8", "replace")
+                      for v in texts_ds[:f.rows(texts_ds)]] + [b""], dtype=object)
     out = np.zeros(len(raw), dtype=SEGMENT_DTYPE)
     for key, table, what in (("kind", np.array([k.encode() for k in kinds] + [b""], dtype=object), "kind_names"),
                              ("source", texts, "/segment_texts"), ("params", texts, "/segment_texts")):
         codes = raw[key].astype(np.int64)
         bad = np.flatnonzero((codes < 0) | (codes >= len(table) - 1))
+        if len(bad) and f.running:   # a killed run: rows whose texts were not stored yet are cut
+            raw, out, codes, bad = raw[:bad[0]], out[:bad[0]], codes[:bad[0]], bad[:0]
         if len(bad):
             i = int(bad[0])
             raise f.fail(f"/segments row {i} field '{key}' is {codes[i]}, but {what} has {len(table) - 1} entries "
@@ -287,7 +361,11 @@ def _coded_segments(f: _File) -> np.ndarray | None:
 
 
 def read_run(path: str | Path) -> RunData:
-    """Load and check one run file; raise RunFileError naming the file and the problem."""
+    """Load and check one run file (module contract); return it as a :class:`~tsa_bench.rundata.RunData`.
+
+    Raises :class:`RunFileError` whose one-line message names the file and the problem; the
+    file is opened read-only and never changed.
+    """
     p = Path(path)
     try:
         check_regular_file(p, "run file")
@@ -307,6 +385,8 @@ def read_run(path: str | Path) -> RunData:
             return _read(_File(p, handle))
     except RunFileError:
         raise
+    except OverBudget as exc:
+        raise RunFileError(str(exc)) from None
     except (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError, AttributeError,
             MemoryError, OverflowError) as exc:
         raise RunFileError(f"{p}: damaged run file ({type(exc).__name__}: {_one_line(exc)})") from None

@@ -8,9 +8,15 @@ spare for closing the file, and stops the run as "disk full" while it still can 
 it. Available means the smaller of the file system's free space for this user and,
 under a file-size limit (``ulimit -f``, RLIMIT_FSIZE), what the file may still grow.
 
-Sizes in bytes. :data:`ROW_BYTES` is one sample row of the run file plus its live
-sidecar record; :data:`CHUNK_ROW_BYTES` one new HDF5 chunk of every sample column
-(what a flush may allocate beyond its rows).
+The run's journal (the live sidecar) shares the disk: the writer checks before it
+journals a block that the block and everything still waiting for the run file fit with
+the same reserve (:func:`journal_bytes`), so the journal never takes the room the run file
+needs to store what it holds and to close.
+
+Sizes in bytes. :data:`ROW_BYTES` is one sample row of the run file plus its journal
+record; :data:`FILE_ROW_BYTES` one row of the run file alone (uncompressed, an upper
+bound); :data:`CHUNK_ROW_BYTES` one new HDF5 chunk of every sample column (what a flush may
+allocate beyond its rows).
 """
 
 from __future__ import annotations
@@ -21,12 +27,14 @@ from pathlib import Path
 
 from tsa_bench.rundocs import StorageFull
 
-__all__ = ["StorageFull", "available_bytes", "ensure_room", "flush_bytes", "run_bytes"]
+__all__ = ["StorageFull", "available_bytes", "ensure_room", "flush_bytes", "journal_bytes", "run_bytes"]
 
 #: Kept free for closing the file (attributes, superblock, metadata cache).
 CLOSE_RESERVE_BYTES = 512 * 1024
-#: One sample row: the run file's columns (68 B) and the live sidecar's record (58 B).
-ROW_BYTES = 68 + 58
+#: One sample row of the run file's columns, uncompressed.
+FILE_ROW_BYTES = 68
+#: One sample row: the run file's columns (68 B) and the journal's record (69 B and extras).
+ROW_BYTES = FILE_ROW_BYTES + 69
 #: One new chunk of 8192 rows for every sample column, allocated whole by HDF5.
 CHUNK_ROW_BYTES = 8192 * 68
 #: Segment and event rows with their strings, a generous average.
@@ -62,12 +70,19 @@ def flush_bytes(rows: int, segments: int, events: int) -> int:
     chunk of each table written to, and 64 KiB of metadata)."""
     total = 64 * 1024
     if rows:
-        total += rows * ROW_BYTES + CHUNK_ROW_BYTES
+        total += rows * FILE_ROW_BYTES + CHUNK_ROW_BYTES
     if segments:
         total += segments * SEGMENT_ROW_BYTES + SEGMENT_CHUNK_BYTES
     if events:
         total += events * EVENT_ROW_BYTES + EVENT_CHUNK_BYTES
     return total
+
+
+def journal_bytes(records: int, record_size: int, waiting_rows: int, waiting_segments: int,
+                  waiting_events: int) -> int:
+    """Room to journal ``records`` more samples and still store and close what waits for the
+    run file (``waiting_*``, the new records included)."""
+    return records * record_size + flush_bytes(waiting_rows, waiting_segments, waiting_events)
 
 
 def run_bytes(samples: float, segments: int) -> int:

@@ -16,6 +16,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from tsa_bench.outputs import save_figure, write_text
 from tsa_bench.sweep.stats import mean_interval, wilson
 from tsa_bench.sweep.study import Study
 from tsa_bench.sweep.table import ResultsTable, unit_of
@@ -142,10 +143,10 @@ def write_report(study: Study, table: ResultsTable, out_dir: str | Path) -> list
             ax.grid(alpha=0.3)
             fig_obj.tight_layout()
             path = out / f"{fig}__vs__{x}.png"
-            fig_obj.savefig(path, dpi=100)
+            save_figure(fig_obj, path, dpi=100)
             plt.close(fig_obj)
             paths.append(path)
     summary = out / "summary.md"
-    summary.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text(summary, "\n".join(lines) + "\n")
     paths.append(summary)
     return paths

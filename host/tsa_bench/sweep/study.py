@@ -197,6 +197,10 @@ def _axis_values(doc: YamlDocument, path: str, spec: Any, default: Any, seed: in
     return [int(rng.integers(int(lo), int(hi) + 1)) for _ in draws] if integer else [float(v) for v in draws]
 
 
+#: Longest study name (characters and UTF-8 bytes): it names the results folder (at most 255 bytes).
+MAX_NAME_CHARS = 100
+
+
 def load_study(path: str | Path) -> Study:
     """Read and validate a study file and expand its points (module contract)."""
     doc = read_yaml(path, what="study file")
@@ -207,8 +211,13 @@ def load_study(path: str | Path) -> Study:
         if k not in TOP_KEYS:
             raise _fail(doc, (k,), f"unknown key {k!r} (allowed: {', '.join(TOP_KEYS)})")
     name = data.get("study")
-    if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\\0"):
-        raise _fail(doc, ("study",), "study: give the study a name (text without slashes)")
+    if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\\0") \
+            or name.strip() in (".", ".."):
+        raise _fail(doc, ("study",), "study: give the study a name (text without slashes, not '.' or '..': it "
+                                     "names the results folder)")
+    if len(name) > MAX_NAME_CHARS or len(name.encode("utf-8", "surrogatepass")) > MAX_NAME_CHARS:
+        raise _fail(doc, ("study",), f"study: a name of {len(name):,} characters; at most {MAX_NAME_CHARS} "
+                                     "(it names the results folder)")
     runner = data.get("runner")
     if runner not in schema.RUNNERS:
         raise _fail(doc, ("runner",), f"runner must be one of {', '.join(schema.RUNNERS)}, got {runner!r}")

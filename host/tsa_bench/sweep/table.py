@@ -14,8 +14,9 @@ then the figures of merit. Each column's unit is in its field metadata (``units`
 ``"1"`` for counts, flags and text) and, where it has one, in its name.
 
 Contract: :meth:`ResultsTable.add` buffers a row and :meth:`flush` writes the buffer
-as a new part atomically (temporary file, then rename), so a killed sweep leaves whole
-parts only and loses at most the rows of the last ``flush_s`` seconds;
+as a new part atomically (a temporary file created exclusively beside it, removed if the
+write is interrupted, then renamed), so a killed sweep leaves whole parts only and loses at
+most the rows of the last ``flush_s`` seconds;
 :meth:`finished_keys` reads the keys of every part, which is how a re-run skips the
 points already computed. Unreadable parts (an interrupted write of another tool) are
 reported, never silently dropped.
@@ -26,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
-import os
 import time
 import uuid
 from pathlib import Path
@@ -36,6 +36,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from tsa_bench import __version__
+from tsa_bench.outputs import open_new, writing
 
 #: unit of a column by the end of its name (the longest match wins)
 _SUFFIX_UNITS = {"_s": "s", "_min": "min", "_mm": "mm", "_ohm": "ohm", "_ohm_per_h": "ohm/h", "_percent": "%",
@@ -145,9 +146,8 @@ class ResultsTable:
         stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%S")
         self._written += 1
         path = self.parts / f"part-{stamp}-{uuid.uuid4().hex[:12]}-{self._written:05d}.parquet"  # never reused
-        tmp = path.with_suffix(".tmp")
-        pq.write_table(table, tmp)
-        os.replace(tmp, path)
+        with writing(path, tag="tmp") as tmp, open_new(tmp) as f:
+            pq.write_table(table, f)
         self._rows = []
         return path
 
@@ -167,9 +167,8 @@ class ResultsTable:
             table = table.set_column(table.schema.get_field_index("point"), table.schema.field("point"),
                                      pa.array([p for p, _ in rows], type=table.schema.field("point").type))
         path = self.folder / "results.parquet"
-        tmp = path.with_suffix(".tmp")
-        pq.write_table(table, tmp)
-        os.replace(tmp, path)
+        with writing(path, force=True, tag="tmp") as tmp, open_new(tmp) as f:   # rebuilt from the parts each time
+            pq.write_table(table, f)
         return path
 
 

@@ -7,6 +7,9 @@ safe loader into a node graph (positions kept) and refused, with a
 * it is larger than ``max_bytes`` or not strict UTF-8 (files only), or not valid YAML;
 * collections nest deeper than ``max_depth``, counted as written and again with
   aliases expanded (so no reader of the document can run out of stack);
+* it holds more than ``max_nodes`` values as written (counted on the parser's events,
+  with LibYAML's C parser when present, before anything is built: a 2 MB list of a
+  million numbers is refused in a fraction of a second, not after building it);
 * aliases expand it to more than ``max_nodes`` nodes (an "alias bomb" of a few hundred
   bytes would otherwise become gigabytes for any reader that walks it), or an alias
   refers to a collection that contains it (a cycle);
@@ -66,16 +69,21 @@ def _has_surrogate(text: str) -> int:
 
 
 class _Loader(yaml.SafeLoader):
-    """The safe loader with a nesting limit enforced while composing (before recursing)."""
+    """The safe loader with nesting and size limits enforced while composing (before recursing)."""
 
-    def __init__(self, text: str, max_depth: int) -> None:
+    def __init__(self, text: str, max_depth: int, max_nodes: int) -> None:
         super().__init__(text)
         self._depth = 0
         self._max_depth = max_depth
+        self._nodes = 0
+        self._max_nodes = max_nodes
 
     def compose_node(self, parent: Node | None, index: Any) -> Node:  # type: ignore[override]
         if self._depth >= self._max_depth and not self.check_event(yaml.AliasEvent, yaml.ScalarEvent):
             raise _TooDeep(self.peek_event().start_mark)
+        self._nodes += 1
+        if self._nodes > self._max_nodes:
+            raise _TooMany(self.peek_event().start_mark)
         self._depth += 1
         try:
             return super().compose_node(parent, index)
@@ -87,6 +95,33 @@ class _TooDeep(Exception):
     def __init__(self, mark: Mark) -> None:
         super().__init__()
         self.mark = mark
+
+
+class _TooMany(Exception):
+    """More values than the limit, as written."""
+
+    def __init__(self, mark: Mark) -> None:
+        super().__init__()
+        self.mark = mark
+
+
+_VALUE_EVENTS = (yaml.ScalarEvent, yaml.SequenceStartEvent, yaml.MappingStartEvent, yaml.AliasEvent)
+
+
+def _count_values(text: str, limit: int) -> None:
+    """_TooMany past ``limit`` values, counted on LibYAML's events (fast, nothing built); a
+    syntax error is left to the composer, which words it. Without LibYAML, the composer counts."""
+    if not getattr(yaml, "__with_libyaml__", False):
+        return
+    n = 0
+    try:
+        for event in yaml.parse(text, Loader=yaml.CSafeLoader):
+            if isinstance(event, _VALUE_EVENTS):
+                n += 1
+                if n > limit:
+                    raise _TooMany(event.start_mark)
+    except yaml.YAMLError:
+        return
 
 
 def describe(node: Node) -> str:
@@ -256,8 +291,13 @@ def parse_yaml(text: str, filename: str = "<string>", limits: YamlLimits = YamlL
         raise DocumentError(filename, line, column, "text holds a lone surrogate (not a character)")
     loader: _Loader | None = None
     try:
-        loader = _Loader(text, limits.max_depth)
+        _count_values(text, limits.max_nodes)
+        loader = _Loader(text, limits.max_depth, limits.max_nodes)
         root = loader.get_single_node()
+    except _TooMany as exc:
+        raise DocumentError(filename, exc.mark.line + 1, exc.mark.column + 1,
+                            f"holds more than {limits.max_nodes:,} values (lists, mappings and scalars as written; "
+                            f"limit {limits.max_nodes:,}): far more than any setting needs") from None
     except _TooDeep as exc:
         raise DocumentError(filename, exc.mark.line + 1, exc.mark.column + 1,
                             f"nested more than {limits.max_depth} levels deep (limit {limits.max_depth})") from None
