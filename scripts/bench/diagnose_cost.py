@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -63,6 +64,7 @@ def main() -> int:
     for k in range(args.repeats):
         for name, path in (("baseline", args.baseline), ("this", ROOT)):
             out = work / f"{name}-{k}"
+            shutil.rmtree(out, ignore_errors=True)     # a report folder holding files is refused
             cmd = [*prefix, sys.executable, "-m", "tsa_bench.cli", "diagnose", str(run), "-q", "--out", str(out)]
             c, wall, code = child_cpu(cmd, env_of[name], path)
             if code:
