@@ -229,3 +229,18 @@ def test_cli_run_without_twist_is_a_mismatch_verdict(tmp_path):
     assert res.exit_code == 0, res.output
     assert res.stdout.startswith("VERDICT: model_mismatch: ") and "turns" in res.stdout.splitlines()[0]
     assert json.loads((tmp_path / "o" / "diagnose.json").read_text())["verdict"] == "model_mismatch"
+
+
+def test_the_verdict_goes_on_the_run_s_catalogue_row(tmp_path, fake_engine):
+    from tsa_bench import catalogue
+
+    run = tmp_path / "data" / "r.h5"
+    run.parent.mkdir()
+    write_minimal_run(run)
+    assert invoke(run, "--out", tmp_path / "o", "--catalogue", "none").exit_code == 0
+    assert not (run.parent / "catalogue.sqlite").exists()
+    assert invoke(run, "--out", tmp_path / "o2").exit_code == 0    # registered beside the run, verdict and all
+    with catalogue.open(run.parent) as cat:
+        row = cat.by_path(run)
+    assert row.verdict == "named" and row.verdict_detail == "resistance_transient_decay"
+    assert row.diagnosed is not None and row.sha256 is not None and row.file_state() == "ok"

@@ -1,7 +1,8 @@
 """Command line: the `tsa-bench` group, one module per family of commands.
 
 - :mod:`.experiment`: validate, sim-serve, effects; :mod:`.run`: run (also --resume)
-- :mod:`.data`: info, ls, report, watch, export; :mod:`.importing`: import
+- :mod:`.data`: info, report, watch, export; :mod:`.importing`: import
+- :mod:`.catalogue`: ls, catalogue (rebuild, check); :mod:`.lab`: lab; :mod:`.serve`: serve
 - :mod:`.rig`: ports, check, jog; :mod:`.calibrate`: calibrate; :mod:`.zero`: zero
 - :mod:`.models`: fit, predict, manipulator; :mod:`.estimate`: estimate
 - :mod:`.diagnose`: diagnose
@@ -32,7 +33,10 @@ COMMANDS: dict[str, str] = {
     "sim-serve": "experiment:sim_serve",
     "effects": "experiment:effects",
     "info": "data:info",
-    "ls": "data:ls_cmd",
+    "ls": "catalogue:ls_cmd",
+    "catalogue": "catalogue:catalogue_cmd",
+    "lab": "lab:lab",
+    "serve": "serve:serve",
     "report": "data:report",
     "watch": "data:watch",
     "import": "importing:import_cmd",

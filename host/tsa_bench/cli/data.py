@@ -1,4 +1,4 @@
-"""Data commands: `tsa-bench info | ls | report | watch | export` (`import`: :mod:`.importing`).
+"""Data commands: `tsa-bench info | report | watch | export` (`import`: :mod:`.importing`; `ls`: :mod:`.catalogue`).
 
 Exit codes as in :mod:`tsa_bench.cli`: 0 success; 1 a watched run ended without success
 or was killed; 2 bad input (run file, CSV, options), with a message naming the file and,
@@ -50,31 +50,6 @@ def info(run_files: tuple[str, ...]) -> None:
             click.echo(f"error: {exc}", err=True)
             code = EXIT_BAD_INPUT
     sys.exit(code)
-
-
-@click.command("ls")
-@click.argument("folder", type=click.Path(file_okay=False), default="runs", required=False)
-@MAX_MEMORY
-def ls_cmd(folder: str) -> None:
-    """One line per run file in FOLDER (default runs/): status, plan, duration, samples, segments."""
-    from pathlib import Path
-
-    from tsa_bench.console.progress import hms
-    from tsa_bench.store.listing import list_runs
-
-    if not Path(folder).is_dir():
-        fail(f"{folder}: no such folder")
-    rows = list_runs(folder)
-    if not rows:
-        click.echo(f"no run files (*.h5) in {folder}")
-        return
-    click.echo(f"{'status':<10} {'duration':>9} {'samples':>9} {'segments':>11}  {'plan':<28} file")
-    for r in rows:
-        if r.problem and r.status in ("?", "recording"):
-            click.echo(f"{r.status:<10} {'':>9} {'':>9} {'':>11}  {'':<28} {r.path.name}  ({r.problem})")
-            continue
-        click.echo(f"{r.status:<10} {hms(r.duration_s):>9} {r.samples:>9} {r.segments:>11}  {r.plan:<28} "
-                   f"{r.path.name}" + (f"  ({r.link})" if r.link else ""))
 
 
 @click.command()

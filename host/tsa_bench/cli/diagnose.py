@@ -69,22 +69,28 @@ def _no_segments_hint(run: Any) -> str:
                    "model, printed beside the held-out figures (prospective validation).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap resampling.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress lines on stderr.")
+@click.option("--catalogue", "catalogue_url", default=None, metavar="URL",
+              help="Catalogue the verdict is registered in, on each run's row (default: $TSA_BENCH_CATALOGUE, "
+                   "else catalogue.sqlite beside each run file; 'none': not registered).")
 @MAX_MEMORY
 @FORCE
 def diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
              out_dir: str | None, json_path: str | None, max_causes: int, model_out: str | None,
-             validate_files: tuple[str, ...], seed: int, quiet: bool, force: bool) -> None:
+             validate_files: tuple[str, ...], seed: int, quiet: bool, catalogue_url: str | None, force: bool) -> None:
     """Judge the simulation on RUN.h5: a verdict (explained, named, unexplained, model_mismatch), the cause, the gain.
 
     A report folder that already holds files, or an existing --json file, is refused unless --force
     (the --write-model file is never overwritten, --force or not).
     """
     try:
-        _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, model_out, validate_files,
-                  seed, quiet, force)
+        result = _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, model_out,
+                           validate_files, seed, quiet, force)
     except KeyboardInterrupt:
         click.echo("diagnose: interrupted; nothing written", err=True)
         sys.exit(EXIT_ABORTED)
+    from tsa_bench.cli.catalogue import register_verdict
+
+    register_verdict(catalogue_url, list(run_files), result.verdict, result.cause or result.summary)
 
 
 def _read_runs(paths: tuple[str, ...]) -> list:
@@ -103,7 +109,8 @@ def _read_runs(paths: tuple[str, ...]) -> list:
 
 def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
               out_dir: str | None, json_path: str | None, max_causes: int, model_out: str | None,
-              validate_files: tuple[str, ...], seed: int, quiet: bool, force: bool) -> None:
+              validate_files: tuple[str, ...], seed: int, quiet: bool, force: bool):
+    """The diagnose result, once its report is written and the extended model with it (exits on any problem)."""
     if max_causes < 0:
         fail(f"--max-causes must be >= 0, got {max_causes}")
     if model_out is not None and Path(model_out).exists():
@@ -192,3 +199,4 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
     click.echo("")
     for p in [*paths.values(), jpath, *written]:
         click.echo(f"wrote {p}")
+    return result

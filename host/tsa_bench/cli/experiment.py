@@ -12,7 +12,9 @@ import click
 
 from tsa_bench.cli.exits import fail
 
-from tsa_bench.cli.loading import ALLOW_URL, TRUST_FW, check_port_or_exit, load_bench_or_exit, load_plan_or_exit
+from tsa_bench.cli.loading import (
+    ALLOW_URL, SET_OPTION, TRUST_FW, check_port_or_exit, load_bench_or_exit, load_plan_or_exit, variable_values,
+)
 
 
 @click.command()
@@ -21,9 +23,10 @@ from tsa_bench.cli.loading import ALLOW_URL, TRUST_FW, check_port_or_exit, load_
               help="Bench file (default: configs/bench/sim.yaml, the simulated bench; with a serial --port, "
                    "configs/bench/arduino-mega.yaml).")
 @click.option("--port", default=None, help="Serial device the run would use (checked like `run --port`).")
+@SET_OPTION
 @ALLOW_URL
 @TRUST_FW
-def validate(protocol: str, bench_path: str | None, port: str | None, allow_url: bool,
+def validate(protocol: str, bench_path: str | None, port: str | None, sets: tuple[str, ...], allow_url: bool,
              trust_firmware_dir: bool) -> None:
     """Check PROTOCOL and the bench file as `run` would (schema, limits, device commands, plant);
     print the compiled plan."""
@@ -31,7 +34,7 @@ def validate(protocol: str, bench_path: str | None, port: str | None, allow_url:
 
     check_port_or_exit(port, allow_url)
     bench = load_bench_or_exit(bench_path, port, allow_url=allow_url, trust_firmware_dir=trust_firmware_dir)
-    plan = load_plan_or_exit(protocol, bench)
+    plan = load_plan_or_exit(protocol, bench, variable_values(sets))
     click.echo(format_summary(plan))
     click.echo(f"valid for bench '{bench.name}'")
 

@@ -11,6 +11,7 @@ import sys
 
 import click
 
+from tsa_bench.cli.catalogue import CATALOGUE_OPTION
 from tsa_bench.cli.loading import MAX_MEMORY
 from tsa_bench.cli.exits import EXIT_BAD_INPUT
 
@@ -83,12 +84,13 @@ def _numbers(pairs: dict[str, str], option: str) -> dict[str, float]:
               help="COLUMN: change the sign of a column (a stage position counted the other way, a meter's sign).")
 @click.option("--meta", "metas", multiple=True, help="KEY=VALUE stored in the run's metadata (repeatable).")
 @click.option("--out", "out_file", type=click.Path(dir_okay=False), required=True, help="Run file to write.")
+@CATALOGUE_OPTION
 @MAX_MEMORY
 def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], no_header: bool,
                delimiter: str | None, decimal: str | None, sheet: str | None, var: str | None, group: str | None,
                sample_period_s: float | None, time_order: str, segments: str, thresholds: tuple[str, ...],
                load_g: float | None, consts: tuple[str, ...], scales: tuple[str, ...], offsets: tuple[str, ...],
-               negates: tuple[str, ...], metas: tuple[str, ...], out_file: str) -> None:
+               negates: tuple[str, ...], metas: tuple[str, ...], out_file: str, catalogue_url: str | None) -> None:
     """Turn SOURCE (CSV/TSV/text, .xlsx, MATLAB .mat, LabVIEW .tdms) into a run file (backend "import").
 
     Prints every source column and where it went, what was done to the clock, the sample
@@ -129,3 +131,6 @@ def import_cmd(source: str, maps: tuple[str, ...], unit_opts: tuple[str, ...], n
     for warning in summary.warnings:
         click.echo(f"warning: {warning}", err=True)
     click.echo(f"wrote {summary.path} ({summary.n_samples} samples)")
+    from tsa_bench.cli.catalogue import register_file
+
+    register_file(catalogue_url, summary.path)

@@ -96,9 +96,31 @@ def load_bench_or_exit(path: str | None, port: str | None = None, *, allow_url: 
         fail(str(exc))
 
 
-def load_plan_or_exit(path: str, bench):
-    """The protocol, compiled under the bench limits, with every device command checked to
-    fit the wire: `validate` and `run` refuse exactly the same protocols."""
+SET_OPTION = click.option(
+    "--set", "sets", multiple=True, metavar="NAME=VALUE",
+    help="Give a variable the protocol declares another value, e.g. --set load_g=350 (repeatable).")
+
+
+def variable_values(values: tuple[str, ...]) -> dict[str, int | float | str]:
+    """``NAME=VALUE`` pairs of ``--set``: a number stays a number; exit 2 if malformed."""
+    out: dict[str, int | float | str] = {}
+    for name, text in meta_pairs(values, "--set").items():
+        try:
+            number = float(text)
+            out[name] = int(number) if number.is_integer() and "." not in text and "e" not in text.lower() else number
+        except ValueError:
+            if not text.strip():
+                fail(f"--set {name}=: give a value")
+            out[name] = text
+        if isinstance(out[name], float) and out[name] != out[name] or out[name] in (float("inf"), float("-inf")):
+            fail(f"--set {name}={text}: not a finite number")
+    return out
+
+
+def load_plan_or_exit(path: str, bench, variables: dict | None = None):
+    """The protocol, compiled under the bench limits (``variables`` replacing declared values),
+    with every device command checked to fit the wire: `validate` and `run` refuse exactly
+    the same protocols."""
     from tsa_bench.plan import PlanErrors, load_plan
     from tsa_bench.runner.commands import plan_problems
     from tsa_bench.shipped import find_config
@@ -107,7 +129,7 @@ def load_plan_or_exit(path: str, bench):
     if from_shipped:
         click.echo(f"tsa-bench: {path} is not in the current folder: using the shipped {found}", err=True)
     try:
-        plan = load_plan(found, bench.limits)
+        plan = load_plan(found, bench.limits, variables)
     except PlanErrors as exc:
         fail(f"{found} is not a valid protocol; nothing was sent to any device:\n{exc}")
     from tsa_bench.runner.tracking import bench_problems

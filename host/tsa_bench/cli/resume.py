@@ -48,10 +48,24 @@ def _protocol_path(run_file: str) -> str:
     return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
 
 
+def _stored_variables(run) -> dict | None:
+    """The protocol variables the run was given (``run --set``), kept in its metadata."""
+    import json
+
+    meta = run.attrs.get("metadata")
+    try:
+        meta = json.loads(meta) if isinstance(meta, (str, bytes)) else meta
+    except ValueError:
+        return None
+    found = meta.get("protocol_variables") if isinstance(meta, dict) else None
+    return found if isinstance(found, dict) else None
+
+
 def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, allow_url: bool,
                    trust_firmware_dir: bool):
-    """(bench, plan, ResumePoint, bench file path, the run file resumed) for resuming
-    ``resume_file`` (the file resumed is a new one when ``resume_file`` had to be rebuilt)."""
+    """(bench, plan, ResumePoint, bench file path, the protocol variables it was given, the run
+    file resumed) for resuming ``resume_file`` (the file resumed is a new one when
+    ``resume_file`` had to be rebuilt)."""
     from tsa_bench.plan import PlanErrors, load_plan_text
     from tsa_bench.runner.commands import plan_problems
     from tsa_bench.runner.resume import CannotResume, resume_point
@@ -95,7 +109,8 @@ def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, a
         if ":" in first:
             source = first.rsplit(":", 1)[0]
     try:
-        plan = load_plan_text(run.protocol_text, bench.limits, source)
+        variables = _stored_variables(run)
+        plan = load_plan_text(run.protocol_text, bench.limits, source, variables)
     except PlanErrors as exc:
         fail(f"the protocol stored in {resume_file} does not compile on bench '{bench.name}':\n{exc}")
     problems = plan_problems(plan, bench.steps_per_turn)
@@ -106,4 +121,4 @@ def prepare_resume(resume_file: str, bench_path: str | None, port: str | None, a
     except CannotResume as exc:
         fail(str(exc))
     click.echo(f"tsa-bench: {point.describe()}", err=True)
-    return bench, plan, point, bench_file, resume_file
+    return bench, plan, point, bench_file, variables, resume_file

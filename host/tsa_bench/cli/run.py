@@ -16,9 +16,10 @@ from pathlib import Path
 import click
 
 from tsa_bench.cli.exits import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_FAILED, fail
+from tsa_bench.cli.catalogue import CATALOGUE_OPTION
 from tsa_bench.cli.loading import (
-    ALLOW_URL, MAX_MEMORY, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit, load_plan_or_exit,
-    meta_pairs,
+    ALLOW_URL, MAX_MEMORY, SET_OPTION, TRUST_FW, check_port_or_exit, is_serial_port, load_bench_or_exit,
+    load_plan_or_exit, meta_pairs, variable_values,
 )
 
 
@@ -141,12 +142,16 @@ def _report_simavr(fil) -> None:
 @click.option("--resume", "resume_file", type=click.Path(dir_okay=False), default=None,
               help="Continue this aborted, failed or killed run from its first incomplete segment, into a new "
                    "file linked to it (default name: RUN-resumed.h5 beside it).")
+@SET_OPTION
+@CATALOGUE_OPTION
+@click.option("--operator-socket", "operator_fd", type=int, default=None, hidden=True,
+              help="(tsa-bench lab) a socket descriptor the lab supervisor answers operator prompts on.")
 @ALLOW_URL
 @TRUST_FW
 @MAX_MEMORY
 def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir: str, out_file: str | None,
-        speed: float | None, seed: int | None, metas: tuple[str, ...], resume_file: str | None, allow_url: bool,
-        trust_firmware_dir: bool) -> None:
+        speed: float | None, seed: int | None, metas: tuple[str, ...], resume_file: str | None, sets: tuple[str, ...],
+        catalogue_url: str | None, operator_fd: int | None, allow_url: bool, trust_firmware_dir: bool) -> None:
     """Run PROTOCOL on the bench and write one HDF5 run file.
 
     Ctrl-C or SIGTERM sends STOP at once and closes the file "aborted" (exit 130); a
@@ -164,7 +169,8 @@ def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir:
     try:
         with interrupts.immediate():
             _prepare_run(session, protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file,
-                         allow_url, trust_firmware_dir)
+                         allow_url, trust_firmware_dir, sets)
+            session.update(catalogue=catalogue_url, operator_fd=operator_fd)
         code = _execute_run(session, interrupts)
     except KeyboardInterrupt:
         click.echo("aborted before the run started; nothing was run", err=True)
@@ -182,6 +188,14 @@ def run(protocol: str | None, bench_path: str | None, port: str | None, out_dir:
     sys.exit(code)
 
 
+def _close_registry(registry, resume) -> None:
+    """Last: the outcome is on the screen while the catalogue is written."""
+    if registry is not None:
+        if resume is not None:
+            registry.refresh(resume.source)   # its file now names this continuation
+        registry.close()
+
+
 def _check_simulation_options(port: str | None, bench, speed: float | None, seed: int | None) -> None:
     """--speed and --seed only mean something to a simulation this process runs."""
     serial = is_serial_port(port) or (port is None and bench.backend == "serial")
@@ -196,27 +210,33 @@ def _check_simulation_options(port: str | None, bench, speed: float | None, seed
 
 
 def _prepare_run(session: dict, protocol, bench_path, port, out_dir, out_file, speed, seed, metas, resume_file,
-                 allow_url, trust_firmware_dir) -> None:
+                 allow_url, trust_firmware_dir, sets=()) -> None:
     """Everything that can be refused before anything is opened: bench, protocol, port,
     output path (reserved: ``session["path"]``), free space; fills ``session``. Exits 2 (bad
     input) or 1 (no room) with nothing sent."""
     from tsa_bench.store.space import StorageFull, ensure_room, run_bytes
 
     check_port_or_exit(port, allow_url)
-    meta = meta_pairs(metas)
+    meta: dict = meta_pairs(metas)
+    variables = variable_values(sets)
+    if variables:
+        meta["protocol_variables"] = variables   # kept in the run file: --resume compiles the same plan
     resume = None
     if resume_file is not None:
-        if protocol is not None:
-            fail("give either PROTOCOL or --resume RUN.h5 (a resumed run uses the protocol stored in RUN.h5)")
+        if protocol is not None or variables:
+            fail("give either PROTOCOL or --resume RUN.h5 (a resumed run uses the protocol and the --set "
+                 "variables stored in RUN.h5)")
         from tsa_bench.cli.resume import prepare_resume
 
-        bench, plan, resume, bench_file, resume_file = prepare_resume(resume_file, bench_path, port, allow_url,
-                                                                      trust_firmware_dir)
+        bench, plan, resume, bench_file, variables, resume_file = prepare_resume(
+            resume_file, bench_path, port, allow_url, trust_firmware_dir)
+        if variables:
+            meta["protocol_variables"] = variables   # the continuation compiles as the run it continues
     else:
         if protocol is None:
             fail("missing PROTOCOL (a protocol YAML file), or --resume RUN.h5")
         bench = load_bench_or_exit(bench_path, port, allow_url=allow_url, trust_firmware_dir=trust_firmware_dir)
-        plan = load_plan_or_exit(protocol, bench)
+        plan = load_plan_or_exit(protocol, bench, variables)
         bench_file = bench.path
     _check_simulation_options(port, bench, speed, seed)
     path = session["path"] = reserve_run_file(out_dir, plan.name, out_file, resume_file if resume else None)
@@ -290,7 +310,7 @@ def _execute_run(session: dict, interrupts) -> int:
                 fil.close()
             fail(f"cannot open {url}: {exc}\n  check the device is plugged in, the port name "
                  "(`tsa-bench ports`), and that no other program holds it", EXIT_FAILED)
-    writer = None
+    writer = registry = None
     try:
         with interrupts.immediate():
             if fil is not None:
@@ -312,7 +332,7 @@ def _execute_run(session: dict, interrupts) -> int:
                     fail(f"{bench.path} describes a simulated bench (it has a plant section) but the device on "
                          f"{url} is real hardware: use a serial bench file such as configs/bench/arduino-mega.yaml "
                          "(or your calibrated copy); nothing was run")
-            person = TerminalOperator()
+            person = _person(session, TerminalOperator)
             operator = AutoOperator(say=person.tell) if simulated else person
             if resume is not None and not simulated:
                 _confirm_resume(resume, person)
@@ -322,6 +342,9 @@ def _execute_run(session: dict, interrupts) -> int:
                 operator = PlantOperator(fil, say=person.tell)
                 operator.apply_initial(plan.load_g if resume is None else resume.load_g)
         consumers = [writer]
+        registry = _registry(session)
+        if registry is not None:
+            consumers.append(registry)
         if _progress_can_show():
             from tsa_bench.console.progress import ProgressDisplay
 
@@ -370,8 +393,11 @@ def _execute_run(session: dict, interrupts) -> int:
         click.echo(f"error: the run file could not be closed properly: {writer.close_error}; it is marked failed "
                    f"and the run's journal {path}.live is kept (tsa-bench run --resume {path} rebuilds the run "
                    "from it)", err=True)
+        _close_registry(registry, resume)
         return EXIT_FAILED
     click.echo(f"wrote {path}" if recorded else f"no run file was written ({path})")
+    sys.stdout.flush()
+    _close_registry(registry, resume)
     if writer is not None and writer.full and stop.exit_status == "success":
         return EXIT_FAILED
     return {"success": 0, "aborted": EXIT_ABORTED}.get(stop.exit_status, EXIT_FAILED)
@@ -383,6 +409,27 @@ def _next_step(stop, path: Path, resume) -> str:
         again = f"the same command again (it resumes {resume.source})" if resume is not None else "it again"
         return f"no segment was done: fix the cause above and run {again}; {path} records the attempt"
     return f"to continue it later: tsa-bench run --resume {path}"
+
+
+def _registry(session: dict):
+    """The catalogue consumer of this run (None with --catalogue none)."""
+    from tsa_bench.cli.catalogue import recorder
+
+    kind = "resumed" if session["resume"] is not None else "recorded"
+    plan = session["plan"]
+    return recorder(session.get("catalogue"), session["path"], kind=kind, load_g=plan.load_g)
+
+
+def _person(session: dict, terminal):
+    """Who answers a real rig's prompts: the lab supervisor (``--operator-socket``) or the terminal."""
+    if session.get("operator_fd") is None:
+        return terminal()
+    from tsa_bench.lab.channel import RigChannel
+
+    try:
+        return RigChannel.from_fd(session["operator_fd"])
+    except OSError as exc:
+        fail(f"--operator-socket {session['operator_fd']}: {exc.strerror or exc}; nothing was run")
 
 
 def _confirm_resume(resume, person) -> None:

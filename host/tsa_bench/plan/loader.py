@@ -5,8 +5,9 @@ Top-level keys: ``name`` (required), ``description``, ``metadata`` (free-form ma
 0.1), ``limits`` (any subset of :class:`Limits` fields; may only tighten the bench),
 ``defaults`` (``rate_turns_per_s``, ``accel_turns_per_s2`` for moves lacking them; they may
 use variables),
-``variables`` (name: number or text, used as ``$name`` in steps; see
-:mod:`tsa_bench.plan.variables`) and ``steps`` (required, non-empty; see
+``variables`` (name: number or text, used as ``$name`` in steps, ``load_g`` and
+``sampling_period_s``; see :mod:`tsa_bench.plan.variables`; a caller may give other values
+for declared variables, as ``tsa-bench run --set NAME=VALUE`` does) and ``steps`` (required, non-empty; see
 :mod:`tsa_bench.plan.steps`).
 
 Contract: every problem found is raised together as one :class:`PlanErrors`; positions
@@ -46,8 +47,9 @@ _UNIT = {
 }
 
 
-def load_plan(path: str | Path, limits: Limits) -> Plan:
-    """Read and compile the protocol at ``path`` under the bench ``limits``.
+def load_plan(path: str | Path, limits: Limits, variables: dict[str, Value] | None = None) -> Plan:
+    """Read and compile the protocol at ``path`` under the bench ``limits``; ``variables``
+    replace the values of variables the protocol declares.
 
     Raises :class:`PlanErrors` for a missing/unreadable file or any protocol problem.
     """
@@ -56,12 +58,13 @@ def load_plan(path: str | Path, limits: Limits) -> Plan:
         text = read_text_file(path, "protocol file")
     except DocumentError as exc:
         raise PlanErrors([_plan_error(exc)]) from None
-    return _load(text, limits, name, name)
+    return _load(text, limits, name, name, variables)
 
 
-def load_plan_text(text: str, limits: Limits, filename: str = "<string>") -> Plan:
+def load_plan_text(text: str, limits: Limits, filename: str = "<string>",
+                   variables: dict[str, Value] | None = None) -> Plan:
     """Compile protocol YAML given as text; ``filename`` is used in messages and segment sources."""
-    return _load(text, limits, filename, None)
+    return _load(text, limits, filename, None, variables)
 
 
 def _plan_error(exc: DocumentError) -> PlanError:
@@ -77,7 +80,7 @@ def _compose(text: str, filename: str, sink: ErrorSink) -> Node | None:
     return None
 
 
-def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
+def _load(text: str, bench: Limits, filename: str, path: str | None, given: dict[str, Value] | None = None) -> Plan:
     sink = ErrorSink(filename)
     reader = Reader(sink)
     root = _compose(text, filename, sink)
@@ -94,6 +97,11 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
     name = reader.string(top["name"], "name") if "name" in top else None
     description = reader.string(top["description"], "description") if "description" in top else ""
     metadata = _metadata(reader, top.get("metadata"))
+    variables = _variables(reader, top.get("variables"))
+    _override(reader, root, top.get("variables"), variables, given or {})
+    for key in ("load_g", "sampling_period_s"):
+        if key in top:
+            top[key] = _substituted(reader, top[key], variables, key) or top[key]
     load_g = None
     if "load_g" in top and top["load_g"].tag != NULL_TAG:
         load_g = reader.number(top["load_g"], "load_g", "g", ge=0, le=MAX_LOAD_G,
@@ -103,7 +111,6 @@ def _load(text: str, bench: Limits, filename: str, path: str | None) -> Plan:
         period_s = reader.number(top["sampling_period_s"], "sampling_period_s", "s",
                                  ge=MIN_SAMPLING_PERIOD_S, le=MAX_SAMPLING_PERIOD_S)
     limits = _protocol_limits(reader, top.get("limits"), bench)
-    variables = _variables(reader, top.get("variables"))
     defaults = _defaults(reader, _substituted(reader, top.get("defaults"), variables, "defaults"), limits)
 
     segments = Segments.empty()
@@ -157,6 +164,21 @@ def _variables(reader: Reader, node: Node | None) -> dict[str, Value]:
         if value is not None:
             out[name] = value
     return out
+
+
+def _override(reader: Reader, root: Node, node: Node | None, variables: dict[str, Value],
+              given: dict[str, Value]) -> None:
+    """Values given from outside replace declared ones; an undeclared name is an error."""
+    for name, value in given.items():
+        if name not in variables:
+            declared = ", ".join(variables) or "none"
+            reader.sink.add(node if node is not None else root, f"variables.{name}",
+                            f"a value was given for {name}, which this protocol does not declare "
+                            f"(it declares: {declared})")
+        elif isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            reader.sink.add(node, f"variables.{name}", f"the value given for {name} must be a number or a text")
+        else:
+            variables[name] = value
 
 
 def _metadata(reader: Reader, node: Node | None) -> dict[str, Any]:

@@ -48,6 +48,11 @@ BITS_PER_BYTE = 10
 _F = msg.SampleFlags
 _A = msg.AdcFlags
 _NOT_MEASURED = int(_A.RESISTANCE_NOT_MEASURED)
+# the flags as plain ints: an enum flag's & costs a Python call, and expand_block runs per sample
+_F_POSITION_INVALID, _F_MOTOR_MOVING = int(_F.POSITION_INVALID), int(_F.MOTOR_MOVING)
+_F_RES_OVERRANGE, _F_RES_OSCILLATION = int(_F.RESISTANCE_OVERRANGE), int(_F.RESISTANCE_OSCILLATION)
+_A_POSITION_INVALID = int(_A.POSITION_INVALID)
+_A_RES_OVERRANGE, _A_RES_OSCILLATION = int(_A.RESISTANCE_OVERRANGE), int(_A.RESISTANCE_OSCILLATION)
 
 
 def frame_bytes(payload_bytes: int) -> int:
@@ -130,28 +135,28 @@ def expand_block(block: msg.SampleBlock) -> list[msg.Sample]:
     """The SAMPLE messages a block stands for, in order."""
     at = block.resistance_at
     res_flags = 0
-    if block.flags & _F.RESISTANCE_OVERRANGE:
-        res_flags |= int(_A.RESISTANCE_OVERRANGE)
-    if block.flags & _F.RESISTANCE_OSCILLATION:
-        res_flags |= int(_A.RESISTANCE_OSCILLATION)
+    if block.flags & _F_RES_OVERRANGE:
+        res_flags |= _A_RES_OVERRANGE
+    if block.flags & _F_RES_OSCILLATION:
+        res_flags |= _A_RES_OSCILLATION
     out: list[msg.Sample] = []
+    sample, counter, heater_mV, segment = msg.Sample, block.counter, block.heater_mV, block.segment
     t, steps, pos, flags = block.t_us, block.step_position, block.position_raw, block.flags
     for i in range(1 + len(block.entries)):
         if i:
-            e = block.entries[i - 1]
-            t += e.dt_us
-            steps += e.step_delta
-            pos = ((pos + e.position_delta + 0x8000) & 0xFFFF) - 0x8000
-            flags = e.flags
-        adc = int(_A.POSITION_INVALID) if flags & _F.POSITION_INVALID else 0
+            dt_us, step_delta, position_delta, flags = block.entries[i - 1]
+            t += dt_us
+            steps += step_delta
+            pos = ((pos + position_delta + 0x8000) & 0xFFFF) - 0x8000
+        adc = _A_POSITION_INVALID if flags & _F_POSITION_INVALID else 0
         if i == at:
             adc |= res_flags
             raw = block.resistance_raw
         else:
             adc |= _NOT_MEASURED
             raw = 0
-        out.append(msg.Sample((block.counter + i) & 0xFFFFFFFF, t, steps, pos, raw, adc, block.heater_mV,
-                              1 if flags & _F.MOTOR_MOVING else 0, block.segment))
+        out.append(sample((counter + i) & 0xFFFFFFFF, t, steps, pos, raw, adc, heater_mV,
+                          1 if flags & _F_MOTOR_MOVING else 0, segment))
     return out
 
 

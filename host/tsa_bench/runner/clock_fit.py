@@ -157,21 +157,33 @@ class SensorClockFit:
             fit.n = 0
             return t_us
         k = max(1, round(per / _NOMINAL_PERIOD_US))
-        if fit.n and (k != self._k or abs(t_us - fit.predict(counter)) > fit.slope / 4):
-            fit.n = 0                     # a restart, a gap off the grid, another period
+        if fit.n:   # fit.predict and fit.slope, inline (once per sample)
+            slope = fit.xy_cov / fit.x_var if fit.x_var > 0 else fit._slope0
+            if k != self._k or abs(t_us - (fit.y_avg + (counter - fit.x_avg) * slope)) > slope / 4:
+                fit.n = 0                 # a restart, a gap off the grid, another period
         if fit.n == 0:
             self._k = k
             self.stretches += 1
             fit.reset(last[0], last[1])
-        fit.update(counter, t_us)
+        # fit.update(counter, t_us) and fit.predict(counter), inline: this runs once per sample
+        d = fit.decay
+        dx = counter - fit.x_avg
+        dy = t_us - fit.y_avg
+        x_avg = fit.x_avg = fit.x_avg + d * dx
+        y_avg = fit.y_avg = fit.y_avg + d * dy
+        x_var = fit.x_var = (1 - d) * (fit.x_var + dx * dx * d)
+        xy_cov = fit.xy_cov = (1 - d) * (fit.xy_cov + dx * dy * d)
+        fit.n += 1
         if fit.n < MIN_FIT_SAMPLES:
             return t_us
-        fitted = fit.predict(counter)
+        slope = xy_cov / x_var if x_var > 0 else fit._slope0
+        fitted = y_avg + (counter - x_avg) * slope
         residual = t_us - fitted
         self.samples += 1
         self._sq_sum += residual * residual
-        self.max_residual_us = max(self.max_residual_us, abs(residual))
-        self.period_us = fit.slope / self._k
+        if abs(residual) > self.max_residual_us:
+            self.max_residual_us = abs(residual)
+        self.period_us = slope / self._k
         return fitted
 
     def summary(self) -> dict[str, Any]:

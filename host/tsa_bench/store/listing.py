@@ -21,7 +21,7 @@ import numpy as np
 from tsa_bench.store.budget import OverBudget, check_budget
 from tsa_bench.userfiles import DocumentError, check_regular_file
 from tsa_bench.store.hdf5 import FORMAT
-from tsa_bench.store.live import LiveFormatError, LiveTail, sidecar_path
+from tsa_bench.store.live import recording
 from tsa_bench.store.probe import check_hdf5_terminates
 
 
@@ -46,26 +46,12 @@ def _text(value) -> str:
     return str(value)
 
 
-def _recording(path: Path) -> bool:
-    side = sidecar_path(path)
-    if not side.is_file():
-        return False
-    try:
-        tail = LiveTail(side)
-    except (LiveFormatError, OSError):
-        return False
-    try:
-        return bool(tail.writer_alive())
-    finally:
-        tail.close()
-
-
 def _one(path: Path) -> RunLine:
     try:
         check_regular_file(path, "run file")
     except DocumentError as exc:
         return RunLine(path, "?", problem=exc.message)
-    if _recording(path):
+    if recording(path):
         return RunLine(path, "recording", problem="being recorded (tsa-bench watch shows it)")
     why = check_hdf5_terminates(path)
     if why:
@@ -97,6 +83,11 @@ def _one(path: Path) -> RunLine:
         return RunLine(path, "?", problem=str(exc).removeprefix(f"{path}: "))
     except Exception as exc:  # h5py reports damaged files with many exception types
         return RunLine(path, "?", problem=f"not a readable HDF5 file ({type(exc).__name__})")
+
+
+def run_line(path: str | Path) -> RunLine:
+    """The line of one run file (as :func:`list_runs` gives it)."""
+    return _one(Path(path))
 
 
 def list_runs(folder: str | Path) -> list[RunLine]:

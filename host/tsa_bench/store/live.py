@@ -104,6 +104,21 @@ def sidecar_path(run_path: str | Path) -> Path:
     return p.with_name(p.name + ".live")
 
 
+def recording(run_path: str | Path) -> bool:
+    """Whether ``run_path``'s live sidecar is written by a living process on this host."""
+    side = sidecar_path(run_path)
+    if not side.is_file():
+        return False
+    try:
+        tail = LiveTail(side)
+    except (LiveFormatError, OSError):
+        return False
+    try:
+        return bool(tail.writer_alive())
+    finally:
+        tail.close()
+
+
 def _plain(value: Any) -> Any:
     """JSON for numpy scalars and arrays; anything else as its text."""
     if isinstance(value, np.generic):

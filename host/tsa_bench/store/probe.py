@@ -81,14 +81,14 @@ def _read_everything_small(path: Path) -> None:
             pass
 
 
-def _child(path: Path) -> None:
-    """In the forked child: read, then leave without running any parent cleanup."""
-    code = _EXIT_DONE
+def limit_memory(limit_bytes: int = MEMORY_LIMIT_BYTES) -> None:
+    """Cap this process's address space at ``limit_bytes`` (a child reading an untrusted file:
+    a damaged file then costs a MemoryError, not the machine); a no-op where it cannot."""
     try:
         import resource
 
-        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-        limit = MEMORY_LIMIT_BYTES if hard == resource.RLIM_INFINITY else min(MEMORY_LIMIT_BYTES, hard)
+        _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        limit = limit_bytes if hard == resource.RLIM_INFINITY else min(limit_bytes, hard)
         resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
         soft, hard = resource.getrlimit(resource.RLIMIT_CPU)
         used = int(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]))   # a forked child inherits the count
@@ -96,6 +96,12 @@ def _child(path: Path) -> None:
         resource.setrlimit(resource.RLIMIT_CPU, (cpu, hard))
     except (ImportError, ValueError, OSError):
         pass
+
+
+def _child(path: Path) -> None:
+    """In the forked child: read, then leave without running any parent cleanup."""
+    code = _EXIT_DONE
+    limit_memory()
     try:
         _read_everything_small(path)
     except MemoryError:
