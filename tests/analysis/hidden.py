@@ -14,9 +14,9 @@ import json
 import math
 from pathlib import Path
 
-import h5py
 import numpy as np
 
+from tests.analysis.runfiles import write_contract_run
 from tsa_bench.analysis import load_model
 from tsa_bench.analysis.modelspec import switch
 from tsa_bench.sim.history import simulate
@@ -169,19 +169,9 @@ def write_run(path: Path, hist: dict, length: np.ndarray, resistance: np.ndarray
         "load": (hist["load_g"] * G0 / 1000.0, "N"), "segment": (hist["segment"], "1"),
         "motor_moving": (hist["motor_moving"], "1"), "counter": (np.arange(n, dtype=np.uint32), "1"),
     }
-    with h5py.File(path, "w") as f:
-        f.attrs.update({"format": "tsa-bench/run", "format_version": "1.0", "created": "2024-01-01T00:00:00+00:00",
-                        "backend": "import", "firmware": "0.0.0", "exit_status": "success",
-                        "reason": "all segments done"})
-        g = f.create_group("samples")
-        for name, (a, unit) in cols.items():
-            g.create_dataset(name, data=a).attrs["units"] = unit
-        st = h5py.string_dtype()
-        dt = np.dtype([("index", "i4"), ("kind", st), ("t_start", "f8"), ("t_end", "f8"), ("completed", "u1"),
-                       ("cycle", "i4"), ("source", st), ("params", st)])
-        f.create_dataset("segments", data=np.array(hist["segments"], dtype=dt))
-        f.create_dataset("config/bench", data=bench_text)
-    return path
+    return write_contract_run(path, cols, hist["segments"], {
+        "created": "2024-01-01T00:00:00+00:00", "backend": "import", "firmware": "0.0.0", "exit_status": "success",
+        "reason": "all segments done"}, {"config/bench": bench_text})
 
 
 def generate(path: Path, effects: tuple[str, ...] = (), seed: int = 0, short: bool = False,

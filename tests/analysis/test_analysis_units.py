@@ -42,7 +42,7 @@ def test_baseline_model_has_the_thesis_effects_and_every_family_its_forms(model)
                                            "resistance_length", "sensor_noise", "quantisation"}
     assert set(FAMILIES) == {"missed_steps", "thermal_dynamics", "load_dependence", "twist_hysteresis", "length_creep",
                              "resistance_hysteresis", "resistance_transient_decay", "resistance_creep",
-                             "resistance_temperature"}
+                             "resistance_temperature", "length_sensor_drift", "resistance_sensor_drift"}
     assert len(FAMILIES["missed_steps"]) == 3 and len(FAMILIES["resistance_transient_decay"]) == 3
     assert FAMILY_OF["length_creep_twist"] == "length_creep" and FAMILY_OF["resistance_creep_time"] == "resistance_creep"
 
@@ -187,7 +187,7 @@ def test_scrambled_length_is_a_mismatch_not_explained(tmp_path, model):
 def test_result_json_schema_and_provenance(clean_run, model):
     result = diagnose([clean_run], model, model_path="configs/bench/sim-baseline.yaml", seed=7)
     js = json.loads(json.dumps(result.to_json(), allow_nan=False))
-    assert js["schema"] == "tsa-bench/diagnose" and js["schema_version"] == 2
+    assert js["schema"] == "tsa-bench/diagnose" and js["schema_version"] == 3
     assert js["verdict"] in VERDICTS and js["summary"].startswith(js["verdict"])
     for key in ("cause", "causes", "named", "unexplained", "mismatch", "partial", "candidates", "gain", "noise",
                 "residual_tests", "calibrated", "calibration", "holdout", "iterations", "provenance", "notes"):

@@ -62,6 +62,19 @@ def test_missing_model_file(tmp_path):
     assert res.exit_code == 2 and "absent.yaml" in res.output
 
 
+def test_a_validation_run_must_not_be_a_diagnosed_one_and_predict_options_fit_the_file(tmp_path):
+    from tsa_bench.cli.models import predict_cmd
+
+    write_minimal_run(tmp_path / "good.h5", n=400)
+    res = invoke(tmp_path / "good.h5", "--validate", tmp_path / "good.h5", "--out", tmp_path / "o")
+    assert res.exit_code == 2 and "validation run must not be one of the runs" in res.output
+    assert not (tmp_path / "o").exists()
+    model = ROOT / "configs" / "bench" / "sim-baseline.yaml"
+    bad = CliRunner().invoke(predict_cmd, [str(model), str(tmp_path / "good.h5"), "--write-prediction",
+                                           str(tmp_path / "p.h5")])
+    assert bad.exit_code == 2 and "saved fit model" in bad.output and not (tmp_path / "p.h5").exists()
+
+
 def test_bad_holdout(tmp_path):
     write_minimal_run(tmp_path / "good.h5", n=400)
     res = invoke(tmp_path / "good.h5", "--holdout", "bogus:spec", "--out", tmp_path / "o")
@@ -91,9 +104,49 @@ def test_end_to_end_on_a_small_simulated_run(tmp_path, monkeypatch):
     assert data["verdict"] == "named" and data["causes"] == ["resistance_transient_decay"], data["summary"]
     assert res.stdout.startswith("VERDICT: named: resistance_transient_decay")
     assert f"wrote {out / 'report.txt'}" in res.stdout
-    assert "diagnose: calibrating the judged model" in res.stderr and "diagnose:" not in res.stdout
+    assert "diagnose: [stage 2/6 calibration] calibrating the judged model" in res.stderr
+    assert "diagnose: [stage 6/6 final checks]" in res.stderr and "diagnose:" not in res.stdout
     assert data["provenance"]["inputs"][0]["sha256"] and data["provenance"]["model"]["path"].endswith(
         "sim-baseline.yaml")
+
+
+def test_the_loop_extended_model_predict_validate_rediagnose_and_run(tmp_path):
+    """diagnose --write-model --validate, then the file: predict gives the reported held-out RMSE
+    back bit for bit, diagnose --model on the same data says explained, run --bench simulates it."""
+    from tsa_bench.analysis import load_model
+    from tsa_bench.bench import load_bench
+    from tsa_bench.cli import main
+    from tsa_bench.cli.models import predict_cmd
+
+    gen = _speed_module()
+    truth = gen.with_hidden_effect(load_model(None), "resistance_transient_decay")
+    run = gen.simulate_run(truth, HERE / "small.yaml", tmp_path / "a.h5", seed=3)
+    other = gen.simulate_run(truth, HERE / "small.yaml", tmp_path / "b.h5", seed=4)
+    model = tmp_path / "extended.yaml"
+    res = invoke(run, "--write-model", model, "--validate", other, "--out", tmp_path / "d1", "-q")
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "d1" / "diagnose.json").read_text())
+    assert data["causes"] == ["resistance_transient_decay"] and f"wrote {model}" in res.stdout
+    plant = load_bench(model).plant
+    on = {k for k, v in plant["effects"].items() if v.get("enabled")}
+    assert "resistance_transient_decay" in on
+    assert not on & {"missed_steps", "twist_hysteresis", "load_dependence", "length_creep", "thermal_dynamics"}
+    assert "Prospective validation" in res.stdout and len(data["validation"]) == 2
+    for g in data["gain"]:
+        lo, hi = g["after_ci95"]
+        assert lo <= g["heldout_rmse_after"] <= hi and g["noise_rms"] > 0
+    pj = tmp_path / "p.json"
+    pr = CliRunner().invoke(predict_cmd, [str(model), str(run), "--json", str(pj)], catch_exceptions=False)
+    assert pr.exit_code == 0, pr.output
+    figures = json.loads(pj.read_text())["outputs"]
+    for g in data["gain"]:
+        assert figures[g["output"]]["rmse_heldout"] == g["heldout_rmse_after"]      # bit for bit
+    again = invoke(run, "--model", model, "--out", tmp_path / "d2", "-q")
+    assert again.exit_code == 0 and again.stdout.startswith("VERDICT: explained"), again.stdout[:400]
+    assert invoke(run, "--write-model", model, "--out", tmp_path / "d3").exit_code == 2     # never overwritten
+    sim = CliRunner().invoke(main, ["run", str(HERE / "small.yaml"), "--bench", str(model), "--output",
+                                    str(tmp_path / "c.h5")], catch_exceptions=False)
+    assert sim.exit_code == 0 and (tmp_path / "c.h5").stat().st_size > 0, sim.output
 
 
 @pytest.fixture
@@ -105,7 +158,8 @@ def fake_engine(monkeypatch):
 
     calls = {}
 
-    def diagnose(runs, model, holdout=None, *, max_causes=3, seed=0, progress=None, outputs=None, model_path=None):
+    def diagnose(runs, model, holdout=None, *, max_causes=3, seed=0, progress=None, outputs=None, model_path=None,
+                 validate=None):
         if holdout == "bad":
             raise analysis.HoldoutError(f"holdout {holdout!r}: expected run:N, after:SECONDS or fraction:F")
         if holdout == "interrupt":

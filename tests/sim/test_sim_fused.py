@@ -58,6 +58,10 @@ def every_effect_on(**overrides: dict) -> dict:
         "missed_steps_saturating": {"threshold_turns": 30.0, "slip_fraction": 0.2},
         "length_creep_twist": {"creep_fraction": 0.1},
         "resistance_transient_stretched": {}, "resistance_transient_two_exp": {}, "resistance_creep_time": {},
+        "length_offset_drift": {"enabled": True, "mm_per_hour": 0.7},
+        "length_gain_drift": {"enabled": True, "per_hour": -0.004},
+        "resistance_offset_drift": {"enabled": True, "ohm_per_hour": 0.03},
+        "resistance_gain_drift": {"enabled": True, "per_hour": 0.002},
     })
     for name, cfg in overrides.items():
         effects[name] = {**effects.get(name, {}), **cfg}

@@ -26,16 +26,20 @@ from tsa_bench.analysis.modelspec import enabled_effects, get_value
 from tsa_bench.analysis.noise import RELEVANT, Noise
 from tsa_bench.analysis.replay import ReplayCache, replay_samples
 from tsa_bench.analysis.scoring import Comparison, Scores, all_units, compare, unit_scores
-from tsa_bench.analysis.signals import RunBases
+from tsa_bench.analysis.settling import Component, conditional, hold_groups, variance_component
+from tsa_bench.analysis.signals import RunBases, last_direction
 from tsa_bench.analysis.structure import jumps, ljung_box, structure_test
 
 #: relevance floor of an improvement: (half a noise RMS)^2, in noise variances per sample
 FLOOR = RELEVANT ** 2
 N_CAL = 2000          # calibration subsample (all runs)
 N_REFIT = 1000        # subsample for candidate refits (the named one is then polished on N_CAL)
-REFIT_MAX = 4         # forms refitted per iteration
+REFIT_MAX = 8          # forms refitted per iteration (every form of the leader, the best of each other family)
 REFIT_NFEV = 20       # function evaluations per refit
-CONTENDER = 0.1       # other effects are refitted when their screen reaches this share of the leader's
+#: other effects are refitted when their screen reaches this share of the leader's: every one that
+#: screens at all (SCREEN_MIN), since a linear screen can miss an effect whose refit explains a lot
+#: (the load dependence changes the calibration it is screened against)
+CONTENDER = 0.0
 #: a form whose companion only acts through it (the resistance's temperature coefficient needs the
 #: strings to heat) is also refitted together with it
 COMPANIONS = {"thermal_dynamics": ("resistance_temperature",)}
@@ -79,6 +83,7 @@ class Context:
         self.induced: set[str] = set()   # outputs structured only through the joint fit with the other
         self.source: set[str] = set(outputs)   # outputs structured in the judged model (what may be blamed)
         self.form_bars: dict[str, tuple[float, str]] = {}   # output -> (form spread of a named effect, its name)
+        self._hold_arrays: tuple[np.ndarray, ...] | None = None
 
     def _problem(self, n_cal: int, at_least: int, n_total: int) -> Problem:
         """A calibration problem on ~``n_cal`` samples shared out over the runs by length (at least
@@ -96,13 +101,54 @@ class Context:
     def compare(self, a: Scores, b: Scores) -> Comparison:
         return compare(a, b, FLOOR, N_BOOT, self.seed)
 
-    def residual_tests(self, sims: list[dict], r0: float) -> dict:
+    def residual(self, sims: list[dict], o: str) -> np.ndarray:
+        """Measured minus replayed ``o`` over every run (NaN where not scored)."""
+        parts = [np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def _holds(self) -> tuple[np.ndarray, ...]:
+        if self._hold_arrays is None:
+            groups, off = [], 0
+            for r in self.inputs:
+                g = hold_groups(r)
+                groups.append(g + off)
+                off += int(g[-1]) + 1 if len(g) else 0
+            t_off, ts = 0.0, []
+            for r in self.inputs:
+                ts.append(r.t - r.t[0] + t_off)
+                t_off += r.duration_s + 1.0
+            cat = np.concatenate
+            self._hold_arrays = (cat(groups), cat([r.turns for r in self.inputs]), cat([r.load_g for r in self.inputs]),
+                                 cat(ts), cat([r.scored & ~r.heldout for r in self.inputs]),
+                                 cat([r.scored & r.heldout for r in self.inputs]),
+                                 cat([last_direction(r)[:, 0] for r in self.inputs]))
+        return self._hold_arrays
+
+    def component(self, sims: list[dict], o: str, res: np.ndarray | None = None) -> Component:
+        """The hold-to-hold variance component of the residual of ``o`` (:mod:`tsa_bench.analysis.settling`)."""
+        groups, turns, load, t, train, held, direction = self._holds()
+        res = self.residual(sims, o) if res is None else res
+        r0 = float(np.nanmedian(np.concatenate([r.resistance for r in self.inputs])))
+        level = self.inputs[0].length if len(self.inputs) == 1 else np.concatenate([r.length for r in self.inputs])
+        return variance_component(o, res, train, held, groups, turns, load, t, self.noise[o], RunBases(self.inputs, r0),
+                                  level, direction)
+
+    def residual_tests(self, sims: list[dict], r0: float, settle: Mapping[str, Component] | None = None) -> dict:
+        """Structure of each output's residual; for an output with a hold-to-hold component in ``settle``
+        (fitted on these sims) the residual less each hold's predicted offset is tested."""
         bases = RunBases(self.inputs, r0)
         out = {}
         for o in self.outputs:
-            parts = [np.where(r.scored, r.output(o) - s[o], np.nan) for r, s in zip(self.inputs, sims)]
-            res = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            res = self.residual(sims, o)
+            comp = (settle or {}).get(o)
+            if comp is not None and comp.follows:     # offsets that follow something are a misfit: left in
+                comp = None
+            if comp is not None:
+                groups, turns, load, t, _, _, direction = self._holds()
+                res = conditional(comp, res, groups, turns, load, t, self.noise[o], direction)
             out[o] = residual_structure(res, self.noise[o], self.rate, bases, self.moving)
+            if comp is not None:
+                out[o]["hold_offsets_removed"] = comp.tau
             out[o]["undriven"] = self.undriven
         return out
 
@@ -132,6 +178,7 @@ def run_scale(ctx: Context, cfg: Mapping[str, Any]) -> RunScale:
     res_level = get_value(cfg, "geometry.resistance_ohm")
     return RunScale(float(np.max(np.abs(tw))), float(np.max(torque, initial=0.0)), float(max(speed)), typical,
                     float(sum(r.duration_s for r in ctx.inputs)), res_level,
-                    ctx.noise["resistance"].rms if "resistance" in ctx.outputs else 1e-3)
+                    ctx.noise["resistance"].rms if "resistance" in ctx.outputs else 1e-3,
+                    float(np.median(x)), ctx.noise["length"].rms if "length" in ctx.outputs else 0.05)
 
 

@@ -12,28 +12,23 @@ verdict (:mod:`tsa_bench.analysis.verdict`). Steps:
    by least squares, then every parameter on a training subsample (calibrate.py);
 4. residual structure of the judged model (structure.py); if no output is structured
    above the noise the verdict is ``explained`` and nothing is screened;
-5. up to ``max_causes`` iterations: screen every candidate form the data can test (its
-   excitation occurs, :data:`~tsa_bench.analysis.families.NEEDS`) and may blame (the output it
-   acts on was structured in the judged model on its own account, so a later cause never
-   just repairs what an earlier one did to an output that was fine) (screening.py), refit every form of the leading effect and the best form of the next
-   ones that screen at least :data:`CONTENDER` of the leader, together with the model's
-   own parameters, and **name** the one with the largest
-   held-out improvement among those that pass the gate: the 95 % block-bootstrap
-   interval of the pooled held-out improvement over the current model is above 0 and its
-   estimate is at least the relevance floor (a quarter of a noise variance per sample: a
-   structure of half the noise RMS); switching the form off again in the refitted model
-   worsens the training fit by at least the floor (the gain is the form's, not the
-   re-calibration's) and, on the held-out units where the form acts, worsens it
-   significantly; no output's held-out error grows by more than :data:`HARM_REL` of it in
-   :data:`HARM_P` of the resamples; none of the
-   form's own parameters ended at a soft bound. A refit whose parameters fit the
-   training data better even with the form off shows the current calibration was a
-   poorer optimum: the model is re-calibrated from there and the iteration repeated;
-6. the final model: each named cause's own part (final model against the final model
-   re-calibrated without it; with one cause, the judged model) orders the causes,
-   dominant first, and gives its confidence (share of bootstrap replicates above the
-   floor; ``form_confidence``: share in which its form beats the family's other forms);
-   the residual is tested again and the verdict decided (verdict.py).
+5. the search (:mod:`~tsa_bench.analysis.search`): forward selection, one cause per
+   iteration (:func:`~tsa_bench.analysis.naming.iteration`: screen every candidate form the
+   data can test and may blame, refit the leading effect's forms and the best form of every
+   other effect that screens at all, together with the model's own parameters, and name the
+   one with the largest held-out improvement among those that pass the gate: on some output
+   the 95 % block-bootstrap interval of its held-out improvement is above 0 and it is at
+   least the relevance floor, switching it off again worsens the training fit by the floor
+   and the held-out fit significantly, no output is made more than 10 % worse);
+   then backward elimination: a cause that no longer earns its place in the model leaves it
+   and gives its iteration back; confusable alternatives are kept only if swapping them in
+   does as well;
+6. the final model (:mod:`~tsa_bench.analysis.finish`): the residual tested again, the
+   hold-to-hold variance component named where it is random, confidences capped by
+   confusable alternatives and parameters at the edge of their range, near misses, the
+   verdict (verdict.py), and the extended model whose final held-out RMSE is computed from
+   its YAML round trip (what ``--write-model`` writes and ``predict`` reads back).
+Progress lines say the stage (``[stage k/6 name]``) and how far within it.
 """
 
 from __future__ import annotations
@@ -45,29 +40,64 @@ from typing import Any
 
 import numpy as np
 
+from tsa_bench.analysis import validation
 from tsa_bench.analysis.calibrate import calibrate
 from tsa_bench.analysis.context import UNITS, Context, Progress
-from tsa_bench.analysis.families import FAMILIES, FAMILY_OF
-from tsa_bench.analysis.finish import Finisher
+from tsa_bench.analysis.finish import Finisher, declared_settling
 from tsa_bench.analysis.holdout import Holdout, split
 from tsa_bench.analysis.inputs import OUTPUTS, missing_inputs, run_inputs
 from tsa_bench.analysis.modelspec import baseline_specs, get_value
-from tsa_bench.analysis.naming import induced, iteration
+from tsa_bench.analysis.naming import induced
 from tsa_bench.analysis.noise import noise_model
 from tsa_bench.analysis.quasistatic import hold_points, staged_start
-from tsa_bench.analysis.result import Candidate, DiagnoseResult
+from tsa_bench.analysis.result import DiagnoseResult
+from tsa_bench.analysis.search import SearchResult, search
 
 
-def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *, max_causes: int = 3,
-             seed: int = 0, progress: Progress | None = None, outputs: tuple[str, ...] | None = None,
-             model_path: str | Path | None = None) -> DiagnoseResult:
+#: stages of a diagnosis, for the progress lines ("[stage 5/6 search] iteration 2 (at most 14): ...")
+STAGES = 6
+#: most causes in the model at once (forward selection stops there; a demoted one frees its place)
+MAX_CAUSES = 6
+
+
+def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None = None, *,
+             max_causes: int = MAX_CAUSES, seed: int = 0, progress: Progress | None = None,
+             outputs: tuple[str, ...] | None = None, model_path: str | Path | None = None,
+             validate: list | None = None) -> DiagnoseResult:
     """Judge ``model_plant_cfg`` against ``runs`` (RunData); see the module docstring.
 
+    ``validate``: runs scored with the judged and the extended model at the end and
+    nothing else (prospective validation, :func:`tsa_bench.analysis.validation.validate`).
     Raises :class:`~tsa_bench.analysis.holdout.HoldoutError` for a bad ``holdout`` and
-    ValueError for bad ``outputs``; every other problem of the data ends in a verdict.
+    ValueError for bad ``outputs`` or a validation run lacking an input; every other
+    problem of the data ends in a verdict. BLAS runs on one thread: the fits' matrices
+    are small, and on a busy machine the threads' spinning costs more CPU than they save.
     """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        result = _diagnose(runs, model_plant_cfg, holdout, max_causes=max_causes, seed=seed, progress=progress,
+                           outputs=outputs, model_path=model_path)
+    if validate and result.model_plant:
+        if progress:
+            progress(f"[stage {STAGES}/{STAGES} final checks] prospective validation on {len(validate)} run(s)")
+        result.validation = validation.validate(result.model_plant, result.judged_plant, validate, result.outputs,
+                                                seed)
+    return result
+
+
+def _diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None, *, max_causes: int, seed: int,
+              progress: Progress | None, outputs: tuple[str, ...] | None, model_path: str | Path | None
+              ) -> DiagnoseResult:
     t0 = time.perf_counter()
-    say = progress or (lambda msg: None)
+    emit = progress or (lambda msg: None)
+    where = [f"1/{STAGES} inputs"]
+
+    def stage(k: int, name: str) -> None:
+        where[0] = f"{k}/{STAGES} {name}"
+
+    def say(msg: str) -> None:
+        emit(f"[stage {where[0]}] {msg}")
     outputs = tuple(outputs or OUTPUTS)
     if not outputs or any(o not in OUTPUTS for o in outputs):
         raise ValueError(f"outputs must be among {', '.join(OUTPUTS)}, got {', '.join(outputs) or 'none'}")
@@ -85,6 +115,7 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
                      "assumed")
     if hold.one_sided:
         notes.append("excitation on one side of the holdout only: " + ", ".join(hold.one_sided))
+    say("estimating the sensor noise and choosing the held-out blocks")
     noise = {o: noise_model(inputs, o) for o in outputs}
     bad = [(f"{o}: too few samples to estimate the sensor noise", "record longer holds") for o in outputs
            if not np.isfinite(noise[o].rms)]
@@ -102,6 +133,7 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
         return finish.mismatch_only(bad, hold)
     ctx = Context(inputs, outputs, noise, hold, seed)
 
+    stage(2, "calibration")
     say("calibrating the judged model: geometry from the holds")
     pts = hold_points(inputs)
     start = staged_start(model, pts, noise["length"].sigma) if "length" in outputs else {}
@@ -114,62 +146,31 @@ def diagnose(runs: list, model_plant_cfg: Mapping[str, Any], holdout: str | None
         alt = calibrate(ctx.problem, model, specs, centre=centre, max_nfev=60)
         if alt.cost < fit0.cost:
             fit0 = alt
+    stage(3, "residual tests")
     say("testing the judged model's residuals")
     s0 = ctx.scores(fit0.cfg)
     r0 = get_value(fit0.cfg, "geometry.resistance_ohm")
-    tests0 = ctx.residual_tests(s0.sims, r0)
+    declared = declared_settling(model, outputs)     # the model's own hold-to-hold offsets are not structure
+    tests0 = ctx.residual_tests(s0.sims, r0, {o: ctx.component(s0.sims, o) for o in declared})
     structured = [o for o in outputs if tests0[o]["structured"]]
     ctx.source = set(structured)
     if len(structured) > 1:
+        stage(4, "blame")
         ctx.induced = induced(ctx, fit0, structured, centre, say)
         for o in sorted(ctx.induced):
             notes.append(f"the {o} residual is structured only when the model must fit both outputs: calibrated on "
                          f"the {o} alone it is noise, so its structure comes from the other output's misfit and "
                          f"effects acting on the {o} alone are not candidates")
-    current, cur_scores = fit0, s0
-    _s0_first = s0
-    chosen: list[dict] = []
-    iterations: list[dict] = []
-    candidates: dict[str, Candidate] = {}
     if any(t["structured"] for t in tests0.values()):
-        it, redone = 1, False
-        while it <= max_causes:
-            ev, pick, better = iteration(ctx, current, cur_scores, [FAMILY_OF[c["form"]] for c in chosen], centre,
-                                          it, say)
-            iterations.append(ev)
-            for f, s in ev["screened"].items():
-                candidates[f] = Candidate(f, "effect", s["score"], {"family": FAMILY_OF[f],
-                                                                    "form": FAMILIES[FAMILY_OF[f]][f],
-                                                                    "iteration": it, "screen": s,
-                                                                    **({"refit": ev["refit"][f]} if f in ev["refit"]
-                                                                       else {})})
-            if better is not None and not redone:
-                current, cur_scores = better
-                if not chosen:
-                    fit0, s0 = better
-                notes.append(f"iteration {it}: re-calibrated the model's own parameters (a better optimum)")
-                redone = True
-                continue
-            redone = False
-            if pick is None:
-                notes.append(f"iteration {it}: no candidate passed the naming gate")
-                break
-            picked, fit, s_new, c, form_conf, select = pick
-            for k, form in enumerate(picked):
-                chosen.append({"form": form, "gain": c.relative, "form_conf": form_conf if k == 0 else 1.0,
-                               "select": select, "before": (current, cur_scores)})
-                notes.append(f"iteration {it}: {FAMILY_OF[form]} ({FAMILIES[FAMILY_OF[form]][form]}) passed"
-                             + (f", held-out improvement {c.improvement['pooled']:.2f} noise variances" if k == 0
-                                else " as its companion"))
-            current, cur_scores = fit, s_new
-            it += 1
+        stage(5, "search")
+        found = search(ctx, fit0, s0, centre, max_causes, say, notes)
     else:
         notes.append("the judged model's residuals are consistent with the noise model: no candidate screened")
-    if chosen and chosen[0]["before"][0] is not fit0:
-        fit0, s0 = chosen[0]["before"]
-    if s0 is not _s0_first:
-        tests0 = ctx.residual_tests(s0.sims, get_value(fit0.cfg, "geometry.resistance_ohm"))
-    return finish.complete(ctx, fit0, s0, tests0, current, cur_scores, chosen, iterations, candidates, hold, centre,
-                           say)
+        found = SearchResult(fit0, s0, fit0, s0, [], [], [], {})
+    if found.s0 is not s0:
+        tests0 = ctx.residual_tests(found.s0.sims, get_value(found.fit0.cfg, "geometry.resistance_ohm"),
+                                    {o: ctx.component(found.s0.sims, o) for o in declared})
+    stage(6, "final checks")
+    return finish.complete(ctx, found, tests0, hold, centre, say)
 
 

@@ -32,6 +32,9 @@ FAMILIES: dict[str, dict[str, str]] = {
                                    "resistance_transient_two_exp": "sum of exponentials"},
     "resistance_creep": {"resistance_creep": "with twist travel (cycles)", "resistance_creep_time": "with time"},
     "resistance_temperature": {"resistance_temperature": "temperature coefficient"},
+    "length_sensor_drift": {"length_offset_drift": "offset drift with time", "length_gain_drift": "gain drift with time"},
+    "resistance_sensor_drift": {"resistance_offset_drift": "offset drift with time",
+                                "resistance_gain_drift": "gain drift with time"},
 }
 #: plant effect/form name -> effect (family) name
 FAMILY_OF = {form: fam for fam, forms in FAMILIES.items() for form in forms}
@@ -39,12 +42,16 @@ FAMILY_OF = {form: fam for fam, forms in FAMILIES.items() for form in forms}
 OUTPUT_OF = {"missed_steps": "length", "thermal_dynamics": "length", "load_dependence": "length",
              "twist_hysteresis": "length", "length_creep": "length", "resistance_hysteresis": "resistance",
              "resistance_transient_decay": "resistance", "resistance_creep": "resistance",
-             "resistance_temperature": "resistance"}
+             "resistance_temperature": "resistance", "length_sensor_drift": "length",
+             "resistance_sensor_drift": "resistance"}
+#: families that act on one sensor's reading only (a length sensor's drift does not move the resistance)
+READING_ONLY = frozenset({"length_sensor_drift", "resistance_sensor_drift"})
 #: excitation (holdout kinds) a family needs: any of these must occur in the runs
 NEEDS = {"thermal_dynamics": ("heater_on",), "resistance_temperature": ("heater_on",),
          "load_dependence": ("load_change",), "resistance_transient_decay": ("hold",),
          "twist_hysteresis": ("twist_up",), "resistance_hysteresis": ("twist_up",),
-         "missed_steps": ("twist_up",), "length_creep": ("hold",), "resistance_creep": ("hold", "twist_up")}
+         "missed_steps": ("twist_up",), "length_creep": ("hold",), "resistance_creep": ("hold", "twist_up"),
+         "length_sensor_drift": ("hold",), "resistance_sensor_drift": ("hold",)}
 
 
 def _s(key, lo, hi, log=False, hard_lo=False, hard_hi=False):
@@ -80,8 +87,12 @@ FORM_SPECS: dict[str, tuple[ParamSpec, ...]] = {
                                      _s("resistance_transient_two_exp.tau2_s", 3.0, 2000.0, True)),
     "resistance_creep": (_s("resistance_creep.ohm_per_turn", -2e-3, 2e-3),),
     "resistance_creep_time": (_s("resistance_creep_time.ohm_per_hour", -5.0, 5.0),
-                              _s("resistance_creep_time.time_constant_s", 30.0, 1e6, True, hard_hi=True)),
+                              _s("resistance_creep_time.time_constant_s", 30.0, 1e6, True)),
     "resistance_temperature": (_s("resistance_temperature.alpha_per_K", -0.01, 0.01),),
+    "length_offset_drift": (_s("length_offset_drift.mm_per_hour", -50.0, 50.0),),
+    "length_gain_drift": (_s("length_gain_drift.per_hour", -0.2, 0.2),),
+    "resistance_offset_drift": (_s("resistance_offset_drift.ohm_per_hour", -5.0, 5.0),),
+    "resistance_gain_drift": (_s("resistance_gain_drift.per_hour", -0.2, 0.2),),
 }
 
 
@@ -96,6 +107,8 @@ class RunScale:
     duration_s: float
     resistance_ohm: float       # typical resistance level
     resistance_noise_ohm: float
+    length_mm: float = 250.0    # typical length
+    length_noise_mm: float = 0.05
 
 
 def screen_params(form: str, sc: RunScale) -> list[dict[str, float]]:
@@ -134,4 +147,14 @@ def screen_params(form: str, sc: RunScale) -> list[dict[str, float]]:
         return [{"ohm_per_hour": amp, "time_constant_s": t} for t in (0.5 * sc.duration_s, 1e5)]
     if form == "resistance_temperature":
         return [{"alpha_per_K": 5e-4}]
+    hours = max(sc.duration_s, 1.0) / 3600.0     # drifts reaching 20 noise RMS by the end of the run
+    ln = max(sc.length_noise_mm, 1e-6)
+    if form == "length_offset_drift":
+        return [{"mm_per_hour": 20.0 * ln / hours}]
+    if form == "length_gain_drift":
+        return [{"per_hour": 20.0 * ln / hours / max(sc.length_mm, 1.0)}]
+    if form == "resistance_offset_drift":
+        return [{"ohm_per_hour": amp / hours}]
+    if form == "resistance_gain_drift":
+        return [{"per_hour": amp / hours / max(sc.resistance_ohm, 1e-3)}]
     return [{}]

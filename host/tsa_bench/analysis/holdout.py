@@ -4,8 +4,9 @@ Units: time in s.
 
 Contract: :func:`split` sets each run's ``heldout`` mask and returns a
 :class:`Holdout`. The default (SPEC None) keeps every kind of excitation on both sides:
-each run is cut at segment boundaries into about ten contiguous blocks of similar
-duration, and the held-out blocks (about 30 % of the time, never the first block, which
+each run is cut at segment boundaries into contiguous blocks of similar duration (one per
+30 s, 10 to 24 of them: enough held-out blocks for the block bootstrap to have power), and
+the held-out blocks (about 30 % of the time, never the first block, which
 holds the start-up state) are the combination that leaves no kind of excitation (twist
 up, twist down, holds, heater steps, heater on, load changes; kinds seen at least twice)
 on one side only, with each kind's held-out share closest to 30 %; moves that reach the top
@@ -19,7 +20,6 @@ resampling units at segment boundaries for the block bootstrap.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +28,11 @@ from tsa_bench.analysis.inputs import RunInputs
 
 KINDS = ("twist_up", "twist_down", "twist_peak", "hold", "heater_step", "heater_on", "load_change")
 TARGET_FRACTION = 0.3
-N_BLOCKS = 10
+#: blocks per run: one per BLOCK_S seconds, between N_BLOCKS_MIN and N_BLOCKS (enough held-out blocks for
+#: the block bootstrap to have power, each still long enough to hold a move and its pause)
+N_BLOCKS = 24
+N_BLOCKS_MIN = 10
+BLOCK_S = 30.0
 
 
 class HoldoutError(ValueError):
@@ -93,29 +97,57 @@ def _blocks(r: RunInputs, n_blocks: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
+def _key(h: np.ndarray, counts: np.ndarray, total: np.ndarray, dur: np.ndarray) -> tuple:
+    """How good a held-out choice ``h`` (mask over blocks) is, smaller better: kinds on one side
+    only, then the distance of each kind's and the time's held-out share from the target,
+    then the shortest gap between held-out blocks (spread them out)."""
+    held = counts[:, h].sum(axis=1)
+    multi = total >= 2
+    missing = int(np.sum(multi & ((held == 0) | (held == total))))
+    share = np.where(total > 0, held / np.maximum(total, 1), TARGET_FRACTION)
+    balance = float(np.sum(np.abs(share - TARGET_FRACTION)[multi]))
+    frac = abs(dur[h].sum() / max(dur.sum(), 1e-9) - TARGET_FRACTION)
+    pos = np.flatnonzero(h)
+    spread = -int(np.min(np.diff(pos))) if len(pos) > 1 else 0
+    return missing, round(balance + frac, 6), spread, tuple(pos)
+
+
 def _choose(blocks: list[tuple[int, int]], events: dict[str, np.ndarray], t: np.ndarray) -> tuple[set[int], list[str]]:
+    """Held-out blocks (never the first): evenly spaced starts, then single swaps of a held-out and a
+    training block while they make :func:`_key` smaller (a local search: the exhaustive one grows
+    as the binomial coefficient of the block count)."""
     counts = np.array([[int(np.sum((ev >= a) & (ev < b))) for a, b in blocks] for ev in events.values()])
     kinds = list(events)
     total = counts.sum(axis=1)
     dur = np.array([t[b - 1] - t[a] for a, b in blocks], float)
-    k = max(1, int(round(TARGET_FRACTION * len(blocks))))
+    nb = len(blocks)
+    k = min(max(1, int(round(TARGET_FRACTION * nb))), nb - 1)
     best, best_key = None, None
-    for combo in itertools.combinations(range(1, len(blocks)), min(k, len(blocks) - 1)):
-        h = np.zeros(len(blocks), bool)
-        h[list(combo)] = True
-        held = counts[:, h].sum(axis=1)
-        multi = total >= 2
-        missing = int(np.sum(multi & ((held == 0) | (held == total))))
-        share = np.where(total > 0, held / np.maximum(total, 1), TARGET_FRACTION)
-        balance = float(np.sum(np.abs(share - TARGET_FRACTION)[multi]))
-        frac = abs(dur[h].sum() / max(dur.sum(), 1e-9) - TARGET_FRACTION)
-        spread = -min(np.diff(combo)) if len(combo) > 1 else 0
-        key = (missing, round(balance + frac, 6), spread, combo)
+    step = (nb - 1) / k
+    for offset in np.linspace(0.0, step, 4, endpoint=False):
+        pos = np.unique(np.clip(np.round(1 + offset + step * np.arange(k)).astype(int), 1, nb - 1))
+        h = np.zeros(nb, bool)
+        h[pos] = True
+        key = _key(h, counts, total, dur)
         if best_key is None or key < best_key:
-            best, best_key = set(combo), key
-    held = counts[:, sorted(best)].sum(axis=1) if best else np.zeros(len(kinds), int)
+            best, best_key = h, key
+    assert best is not None
+    for _ in range(4 * nb):
+        improved = None
+        for i in np.flatnonzero(best):
+            for j in np.flatnonzero(~best[1:]) + 1:
+                h = best.copy()
+                h[i], h[j] = False, True
+                key = _key(h, counts, total, dur)
+                if key < best_key:
+                    improved, best_key = h, key
+        if improved is None:
+            break
+        best = improved
+    chosen = set(int(i) for i in np.flatnonzero(best))
+    held = counts[:, best].sum(axis=1)
     one_sided = [kk for kk, tot, hh in zip(kinds, total, held) if tot >= 2 and (hh == 0 or hh == tot)]
-    return best or set(), one_sided
+    return chosen, one_sided
 
 
 def _kind_table(runs: list[RunInputs]) -> dict[str, dict]:
@@ -191,7 +223,7 @@ def _default(runs: list[RunInputs]) -> Holdout:
             return h
     one_sided: list[str] = []
     for r in runs:
-        blocks = _blocks(r, N_BLOCKS)
+        blocks = _blocks(r, int(np.clip(r.duration_s // BLOCK_S, N_BLOCKS_MIN, N_BLOCKS)))
         if len(blocks) < 3:
             i = int(np.searchsorted(r.t, r.t[-1] - TARGET_FRACTION * r.duration_s))
             r.heldout[i:] = True

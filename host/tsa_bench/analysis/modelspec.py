@@ -102,7 +102,7 @@ def baseline_specs(plant_cfg: Mapping[str, Any]) -> list[ParamSpec]:
     each range widened to contain the model's own value."""
     from tsa_bench.analysis.families import FORM_SPECS
 
-    on = set(enabled_effects(plant_cfg))
+    on = enabled_effects(plant_cfg)   # a list in library order: the parameter vector's order must not hang on str hashing
     specs: list[ParamSpec] = []
     for key, spec in BASE_SPECS.items():
         head = key.split(".")[0]

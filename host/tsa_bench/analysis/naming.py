@@ -20,7 +20,7 @@ import numpy as np
 from tsa_bench.analysis.calibrate import Fit, Problem, calibrate
 from tsa_bench.analysis.context import (COMPANIONS, CONTENDER, FLOOR, HARM_P, HARM_REL, PROPAGATED, REFIT_MAX,
                                         REFIT_NFEV, SCREEN_MIN, Context, Progress, run_scale)
-from tsa_bench.analysis.families import FAMILIES, FAMILY_OF, FORM_SPECS, NEEDS, OUTPUT_OF
+from tsa_bench.analysis.families import FAMILIES, FAMILY_OF, FORM_SPECS, NEEDS, OUTPUT_OF, READING_ONLY
 from tsa_bench.analysis.modelspec import baseline_specs, enabled_effects, get_value, switch
 from tsa_bench.analysis.noise import window_length
 from tsa_bench.analysis.scoring import Comparison, Scores
@@ -50,7 +50,7 @@ def _blamable(ctx: Context, fam: str, on: set[str], propagated: bool = False) ->
     structure now is more than the length error showing through dR/dX (``propagated``)."""
     acts = OUTPUT_OF[fam]
     if acts not in ctx.outputs:
-        acts = "resistance" if acts == "length" and "resistance_length" in on else ""
+        acts = "resistance" if acts == "length" and "resistance_length" in on and fam not in READING_ONLY else ""
     if acts == "resistance" and OUTPUT_OF[fam] == "resistance" and propagated:
         return False
     return acts in ctx.source and acts not in ctx.induced
@@ -100,21 +100,18 @@ def eligible(ctx: Context, cfg: Mapping[str, Any], named_families: list[str], pr
     return out
 
 
-def gate(c: Comparison, own_train: float, own: Comparison | None, form_bounds: list[dict],
-          outputs: tuple[str, ...], bars: Mapping[str, tuple[float, str]] | None = None, acts: str = "length"
-          ) -> tuple[bool, str]:
-    """The naming gate (docs/diagnose.md, step 8)."""
-    if form_bounds:
-        b = form_bounds[0]
-        return False, f"{b['key']} ran to the {b['side']} bound of its range ({b['bound']:.4g})"
-    if c.ci95["pooled"][0] <= 0:
-        return False, "held-out improvement not significant (95 % interval reaches 0)"
+def gate(c: Comparison, own_train: float, own: Comparison | None, outputs: tuple[str, ...],
+         bars: Mapping[str, tuple[float, str]] | None = None, acts: str = "length") -> tuple[bool, str]:
+    """The naming gate (docs/diagnose.md, step 8). A form parameter at a soft bound does not
+    stop it: it caps the cause's confidence (:func:`tsa_bench.analysis.confusion.cap`)."""
+    if not c.significant(0.0):
+        return False, "held-out improvement not significant (the 95 % interval reaches 0 on every output)"
     if c.improvement["pooled"] < FLOOR:
         return False, f"held-out improvement {c.improvement['pooled']:.3f} noise variances is below the floor {FLOOR}"
     if own_train < FLOOR:
         return False, "switching the form off again in the refitted model barely changes the fit: the gain is the " \
                       "re-calibration's, not the form's"
-    if own is not None and own.ci95["pooled"][0] <= 0:
+    if own is not None and not own.significant(0.0):
         return False, "where the form acts on the held-out data, switching it off is not significantly worse"
     main = acts if acts in outputs else max(outputs, key=lambda o: c.improvement[o])
     bar, earlier = (bars or {}).get(main, (0.0, ""))
@@ -163,9 +160,8 @@ def _refit(ctx: Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...
     rss_abl = float(v_abl @ v_abl)
     c = ctx.compare(cur_scores, s_new)
     own, own_train = _own(ctx, fit, s_new, abl_cfg, rss_abl)
-    bounds = [b for b in fit.at_bound if b["key"].split(".")[0] in forms]
-    ok, why = gate(c, own_train, own, bounds, ctx.outputs, ctx.form_bars, OUTPUT_OF[FAMILY_OF[forms[0]]])
-    if not ok and own_train >= FLOOR and c.improvement["pooled"] >= FLOOR and not bounds:
+    ok, why = gate(c, own_train, own, ctx.outputs, ctx.form_bars, OUTPUT_OF[FAMILY_OF[forms[0]]])
+    if not ok and own_train >= FLOOR and c.improvement["pooled"] >= FLOOR:
         # a near miss may be the refit's coarser calibration: judge it calibrated as well as the
         # current model (every parameter, the full subsample) before turning it down
         fit = calibrate(ctx.problem, fit.cfg, baseline_specs(fit.cfg), start=dict(fit.values), centre=centre,
@@ -175,8 +171,7 @@ def _refit(ctx: Context, current: Fit, cur_scores: Scores, forms: tuple[str, ...
         v_abl = ctx.problem.vector(abl_cfg := _switch_off(fit.cfg, forms))
         rss_abl = float(v_abl @ v_abl)
         own, own_train = _own(ctx, fit, s_new, abl_cfg, rss_abl)
-        bounds = [b for b in fit.at_bound if b["key"].split(".")[0] in forms]
-        ok, why = gate(c, own_train, own, bounds, ctx.outputs, ctx.form_bars, OUTPUT_OF[FAMILY_OF[forms[0]]])
+        ok, why = gate(c, own_train, own, ctx.outputs, ctx.form_bars, OUTPUT_OF[FAMILY_OF[forms[0]]])
         rss_abl = _rss(ctx.small, abl_cfg)
         problem = ctx.problem
     return {"fit": fit, "problem": problem, "scores": s_new, "cmp": c, "ok": ok, "why": why, "own_train": own_train, "own": own,
@@ -210,31 +205,38 @@ def _own(ctx: Context, fit: Fit, s_fit: Scores, abl_cfg: dict, rss_abl: float | 
 
 
 def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: list[str], centre: dict,
-               it: int, say: Progress) -> tuple[dict, tuple | None, tuple | None]:
-    """Screen, refit, gate. Returns (evidence, pick, better_current): ``pick`` = (form, fit, scores,
-    comparison, form confidence, selection confidence) or None; ``better_current`` = (fit, scores)
-    when a refit showed the judged parameters were a poorer optimum (the caller re-runs)."""
+              it: int, say: Progress, exclude: frozenset[str] = frozenset()) -> tuple[dict, dict | None, tuple | None]:
+    """Screen, refit, gate. Returns (evidence, pick, better_current): ``pick`` = {forms, fit, scores,
+    cmp, form_conf, select, alternatives, at_bound} or None; ``better_current`` = (fit, scores)
+    when a refit showed the judged parameters were a poorer optimum (the caller re-runs).
+    ``exclude``: forms not screened (demoted earlier in this diagnosis)."""
     problem = ctx.problem
     small = ctx.small
     residual = stacked(small.residuals(current.cfg), ctx.outputs)
     scale = run_scale(ctx, current.cfg)
     share = propagated_share(ctx, cur_scores, current.cfg)
-    forms = eligible(ctx, current.cfg, named_families, share >= PROPAGATED)
+    # the length error shows in the resistance through dR/dX, unless the length's own structure is
+    # only the resistance misfit showing through the joint fit (then the resistance is the source)
+    propagated = share >= PROPAGATED and "length" not in ctx.induced
+    forms = [f for f in eligible(ctx, current.cfg, named_families, propagated) if f not in exclude]
     say(f"iteration {it}: screening {len(forms)} candidate forms")
     jac = jacobian(small, current.cfg, residual)
     screened = {f: screen(small, current.cfg, f, residual, residual, scale, jac) for f in forms}
+    # rank by the largest share of one output's residual a form explains: an output whose residual
+    # is large in noise units (random hold offsets, say) must not hide an effect on the other one
+    rank = {f: max([screened[f]["score"], *screened[f].get("per_output", {}).values()]) for f in forms}
     by_family: dict[str, list[str]] = {}
-    for f in sorted(forms, key=lambda f: -screened[f]["score"]):
-        if screened[f]["score"] >= SCREEN_MIN:
+    for f in sorted(forms, key=lambda f: -rank[f]):
+        if rank[f] >= SCREEN_MIN:
             by_family.setdefault(FAMILY_OF[f], []).append(f)
-    fam_rank = sorted(by_family, key=lambda fam: -screened[by_family[fam][0]]["score"])
+    fam_rank = sorted(by_family, key=lambda fam: -rank[by_family[fam][0]])
     # every form of the leading family (the form is decided on held-out data, not by the
     # screen), then the best form of each next family
     to_refit: list[str] = [f for f in FAMILIES[fam_rank[0]] if f in screened] if fam_rank else []
-    to_refit.sort(key=lambda f: -screened[f]["score"])
-    top = screened[to_refit[0]]["score"] if to_refit else 0.0
+    to_refit.sort(key=lambda f: -rank[f])
+    top = rank[to_refit[0]] if to_refit else 0.0
     for fam in fam_rank[1:]:
-        if len(to_refit) < REFIT_MAX and screened[by_family[fam][0]]["score"] >= CONTENDER * top:
+        if len(to_refit) < REFIT_MAX and rank[by_family[fam][0]] >= CONTENDER * top:
             to_refit.append(by_family[fam][0])
     evidence: dict = {"iteration": it, "resistance_structure_from_length": share, "screened": {f: {"family": FAMILY_OF[f], **screened[f]} for f in forms},
                       "refit": {}, "named": None}
@@ -244,9 +246,10 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
                                                                     _companion_ok(ctx, current.cfg, g))]
         jobs += [(f, *comp)] if comp else []
     results = {}
-    for fs in jobs:
+    for k, fs in enumerate(jobs):
         f = "+".join(fs)
-        say(f"iteration {it}: refitting {' with '.join(FAMILY_OF[g] for g in fs)} ({FAMILIES[FAMILY_OF[fs[0]]][fs[0]]})")
+        say(f"iteration {it}: refitting {' with '.join(FAMILY_OF[g] for g in fs)} ({FAMILIES[FAMILY_OF[fs[0]]][fs[0]]}), "
+            f"{k + 1} of {len(jobs)}")
         params = {g: (screened[g]["params"] if g in screened else {}) for g in fs}
         res = _refit(ctx, current, cur_scores, fs, params, centre)
         res["scores"] = res["scores"].without_sims()     # only its unit scores are compared from here on
@@ -293,7 +296,7 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
     picked = [lead]
     for g in r["forms"][1:]:   # a companion is named only if its own part passes too
         own, own_train = _own(ctx, fit, s_new, switch(fit.cfg, g, False), problem=r["problem"])
-        ok = own_train >= FLOOR and (own is None or own.ci95["pooled"][0] > 0)
+        ok = own_train >= FLOOR and (own is None or own.significant(0.0))
         evidence["refit"][best][f"companion_{g}"] = {"passed": ok, "own_train_noise_var": own_train,
                                                      "own_heldout": own.to_json() if own else None}
         if ok:
@@ -304,6 +307,8 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
             s_new = ctx.scores(fit.cfg, keep_sims=False)
             c = ctx.compare(cur_scores, s_new)
     evidence["named"] = picked
+    alternatives = rivals_within_interval(results, best, lead)
+    evidence["alternatives"] = alternatives
     # polish every parameter on the full subsample (a resistance-side refit kept the length's
     # parameters, which the judged calibration may have bent to absorb the resistance structure)
     say(f"iteration {it}: polishing every parameter with {' and '.join(FAMILY_OF[g] for g in picked)}")
@@ -311,7 +316,34 @@ def iteration(ctx: Context, current: Fit, cur_scores: Scores, named_families: li
                          max_nfev=REFIT_NFEV)
     fit, s_new = polished, ctx.scores(polished.cfg)     # never worse than its start on the full subsample
     c = ctx.compare(cur_scores, s_new)
-    return evidence, (picked, fit, s_new, c, form_conf, select), None
+    at_bound = [b for b in fit.at_bound if b["key"].split(".")[0] in picked]
+    return evidence, {"forms": picked, "fit": fit, "scores": s_new, "cmp": c, "form_conf": form_conf,
+                      "select": select, "alternatives": alternatives, "at_bound": at_bound}, None
+
+
+def rivals_within_interval(results: dict[str, dict], best: str, lead: str) -> list[dict]:
+    """Refitted effects of other families whose held-out improvement the named one does not beat
+    significantly (the 95 % interval of the paired difference of their bootstrap replicates reaches
+    0) and that explain the held-out data themselves (interval above 0, at least the floor): the
+    data cannot tell them from the named one."""
+    out = []
+    mine = results[best]["cmp"].draws
+    for f, r in results.items():
+        variant = r["forms"][0]
+        if f == best or FAMILY_OF[variant] == FAMILY_OF[lead] or len(r["cmp"].draws) != len(mine):
+            continue
+        c = r["cmp"]
+        if not (r["ok"] or c.significant(FLOOR)):
+            continue
+        d = mine - c.draws
+        if float(np.percentile(d, 2.5)) > 0:
+            continue
+        out.append({"effect": FAMILY_OF[variant], "form": FAMILIES[FAMILY_OF[variant]][variant], "variant": variant,
+                    "improvement_noise_var": c.improvement["pooled"], "ci95": list(c.ci95["pooled"]),
+                    "named_better_share": float(np.mean(d > 0)),
+                    "params": {s.key: r["fit"].values.get(s.key) for s in FORM_SPECS[variant]},
+                    "at_bound": [b for b in r["fit"].at_bound if b["key"].split(".")[0] == variant]})
+    return out
 
 
 def _companion_ok(ctx: Context, cfg: Mapping[str, Any], g: str) -> bool:

@@ -2,8 +2,8 @@
 
 Units: as :mod:`tsa_bench.analysis.inputs`.
 
-Contract: :func:`replay` runs the plant with ``sensor_noise`` and ``quantisation``
-off on the run's samples ``idx`` (sorted; default all), from a fresh plant at the
+Contract: :func:`replay` runs the plant with its random parts (sensor noise, quantisation,
+settling offsets: :data:`RANDOM_PARTS`) off on the run's samples ``idx`` (sorted; default all), from a fresh plant at the
 run's start. On a subsample ``motor_moving`` is the OR over the skipped samples, so
 no motor stop is lost, and a few samples before each kept sample whose twist or load
 changed are simulated too (not returned), so state lagging one sample replays at the
@@ -43,6 +43,8 @@ CONTEXT = 3
 CHUNK = 1 << 16
 #: turning points per target sample beyond which they are replayed for the state only (:func:`replay_samples`)
 STATE_ONLY = 2
+#: effects that only draw random numbers (their mean is 0): a deterministic replay leaves them out
+RANDOM_PARTS = ("sensor_noise", "quantisation", "length_settling", "resistance_settling")
 #: effects whose outputs are a function of the present sample's twist and load alone while
 #: thermal_dynamics is off (the strings then stay at ambient): no state flows between samples
 MEMORYLESS = frozenset({"string_compliance", "radius_growth", "thermal_contraction", "resistance_length",
@@ -77,7 +79,7 @@ def memory(cfg: Mapping[str, Any]) -> str:
 
 def deterministic(plant_cfg: Mapping[str, Any]) -> dict:
     cfg = set_values(plant_cfg, {})
-    for name in ("sensor_noise", "quantisation"):
+    for name in RANDOM_PARTS:
         cfg["effects"].setdefault(name, {})["enabled"] = False
     return cfg
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 SCHEMA = "tsa-bench/diagnose"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 VERDICTS = ("explained", "named", "unexplained", "model_mismatch")
 
 
@@ -54,10 +54,32 @@ class Candidate:
 
 @dataclass
 class Gain:
+    """Held-out RMSE of one output, judged -> final model, with block-bootstrap 95 % intervals."""
+
     output: str
     heldout_rmse_before: float
     heldout_rmse_after: float
     relative: float
+    before_ci95: tuple[float, float] = (math.nan, math.nan)
+    after_ci95: tuple[float, float] = (math.nan, math.nan)
+    reduction_ci95: tuple[float, float] = (math.nan, math.nan)   # before - after, output units
+    noise_rms: float = math.nan
+    settling_sd: float = 0.0          # a named hold-to-hold variance component's sd (0: none)
+
+    @property
+    def stochastic_rms(self) -> float:
+        """What no model of the inputs can predict: the noise and the hold-to-hold offsets."""
+        return math.hypot(self.noise_rms, self.settling_sd)
+
+    def to_json(self) -> dict:
+        return {"output": self.output, "heldout_rmse_before": self.heldout_rmse_before,
+                "heldout_rmse_after": self.heldout_rmse_after, "relative": self.relative,
+                "before_ci95": list(self.before_ci95), "after_ci95": list(self.after_ci95),
+                "reduction_ci95": list(self.reduction_ci95), "noise_rms": self.noise_rms,
+                "after_over_noise": self.heldout_rmse_after / self.noise_rms if self.noise_rms > 0 else None,
+                "settling_sd": self.settling_sd,
+                "after_over_noise_and_settling": self.heldout_rmse_after / self.stochastic_rms
+                if self.stochastic_rms > 0 else None}
 
 
 @dataclass
@@ -80,12 +102,16 @@ class NamedCause:
     relative_gain: dict[str, float]   # held-out RMSE gain per output when it was added
     params: dict[str, float]
     caveats: list[str] = field(default_factory=list)
+    alternatives: list[dict] = field(default_factory=list)   # confusable causes of other families
+    at_bound: list[dict] = field(default_factory=list)       # form parameters at a soft bound
+    kind: str = "effect"              # or "variance component" (hold-to-hold offsets)
 
     def to_json(self) -> dict:
         return {"effect": self.effect, "form": self.form, "variant": self.variant, "output": self.output,
-                "confidence": self.confidence, "form_confidence": self.form_confidence,
+                "kind": self.kind, "confidence": self.confidence, "form_confidence": self.form_confidence,
                 "own_improvement_noise_var": self.own_improvement, "own_improvement_ci95": list(self.ci95),
-                "heldout_gain": self.relative_gain, "params": self.params, "caveats": self.caveats}
+                "heldout_gain": self.relative_gain, "params": self.params, "caveats": self.caveats,
+                "alternatives": self.alternatives, "at_bound": self.at_bound}
 
 
 @dataclass
@@ -121,6 +147,10 @@ class DiagnoseResult:
     iterations: list[dict] = field(default_factory=list)
     provenance: dict = field(default_factory=dict)
     outputs: tuple[str, ...] = ("length", "resistance")
+    model_plant: dict = field(default_factory=dict)     # the extended model's plant (what --write-model writes)
+    judged_plant: dict = field(default_factory=dict)    # the judged model calibrated on the training part
+    components: list[dict] = field(default_factory=list)   # hold-to-hold variance components fitted
+    validation: list[dict] = field(default_factory=list)   # prospective validation (set by the caller)
 
     @property
     def causes(self) -> list[str]:
@@ -141,8 +171,10 @@ class DiagnoseResult:
             "outputs": list(self.outputs),
             "candidates": [{"name": c.name, "kind": c.kind, "score": c.score, "evidence": c.evidence}
                            for c in self.candidates],
-            "gain": [{"output": g.output, "heldout_rmse_before": g.heldout_rmse_before,
-                      "heldout_rmse_after": g.heldout_rmse_after, "relative": g.relative} for g in self.gain],
+            "gain": [g.to_json() for g in self.gain],
+            "components": self.components,
+            "validation": self.validation,
+            "extended_model": self.model_plant,
             "noise": self.noise,
             "residual_tests": self.residual_tests,
             "model_effects_before": self.model_effects_before,

@@ -81,7 +81,8 @@ def screen(problem: Problem, cfg: Mapping[str, Any], form: str, residual: np.nda
             per, k = {}, 0
             for o, n in zip(problem.outputs, _lengths(problem)):
                 r, s = residual[k:k + n], sig[k:k + n]
-                per[o] = float((beta * s) @ (beta * s) / (r @ r)) if r @ r > 0 else 0.0
+                left = r + beta * s
+                per[o] = float(min(1.0, max(0.0, 1.0 - (left @ left) / (r @ r)))) if r @ r > 0 else 0.0
                 k += n
             best = {"score": float(min(score, 1.0)), "params": dict(params), "per_output": per, "amplitude": beta}
     return best

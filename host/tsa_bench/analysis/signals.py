@@ -50,7 +50,8 @@ def _lag(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     return lfilter([1.0 - a], [1.0, -a], x)
 
 
-def _last_direction(r: RunInputs) -> np.ndarray:
+def last_direction(r: RunInputs) -> np.ndarray:
+    """(n, 1): the sign of the last change of |twist| (+1 twisting up, -1 down, 0 before any)."""
     n = len(r)
     d = np.diff(np.abs(r.turns), prepend=np.abs(r.turns[0]))
     step = np.sign(d)
@@ -101,7 +102,7 @@ BUILDERS = {
     "time": lambda r, r0: _poly(r.t),
     "load": lambda r, r0: _poly(r.load_g, 2),
     "heater_power": _heater,
-    "direction": lambda r, r0: _last_direction(r),
+    "direction": lambda r, r0: last_direction(r),
     "speed": lambda r, r0: _speed(r),
     "time_since_stop": lambda r, r0: _time_since_stop(r),
     "travel": lambda r, r0: _poly(np.cumsum(np.abs(np.diff(r.turns, prepend=r.turns[0]))), 2),

@@ -70,14 +70,23 @@ def follows_text(out: str, test: dict) -> str:
     return f"{out} residual is structured but follows none of the inputs"
 
 
-def unexplained_entry(out: str, st: OutputState, induced: bool = False) -> dict:
+def unexplained_entry(out: str, st: OutputState, induced: bool = False, near: list[dict] | None = None) -> dict:
+    """What an output's residual still follows; the near misses (candidates that explain part of it,
+    :mod:`tsa_bench.analysis.near`) are said before "not among the candidates"."""
     t = st.after
-    text = follows_text(out, t) + ": not among the candidates"
+    near = near or []
+    text = follows_text(out, t)
+    if near:
+        text += "; near misses: " + ", ".join(
+            f"{n['effect']} ({n['form']}) would explain about {percent(n['share'])} of it (not named: {n['why_not']})"
+            for n in near)
+    text += ": not among the candidates"
     if induced:
         text = (f"{out} residual is structured only through the joint fit with the other output (calibrated on the "
                 f"{out} alone it is noise)")
     return {"output": out, "structured_rms": t.get("structured_rms"), "units": st.units, "p": t.get("p"),
-            "follows": t.get("follows", []), "jumps": t.get("jumps", 0), "induced": induced, "text": text}
+            "follows": t.get("follows", []), "jumps": t.get("jumps", 0), "induced": induced, "near_misses": near,
+            "text": text}
 
 
 def mismatch_entries(missing: list[tuple[str, str]], at_bound: list[dict], states: dict[str, OutputState]

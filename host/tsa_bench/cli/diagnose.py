@@ -3,7 +3,8 @@
 Exit codes: 0 the diagnosis ran (whatever the verdict: explained, named, unexplained or
 model_mismatch); 1 the engine failed unexpectedly or the report could not be written;
 2 bad input (a run file that breaks the contract, a bad model file, a bad --holdout,
---outputs or --max-causes), nothing written; 130 interrupted (Ctrl-C), nothing written.
+--outputs or --max-causes, a --write-model file that exists, a --validate run that is one of
+the runs or lacks an input), nothing written; 130 interrupted (Ctrl-C), nothing written.
 Progress goes to stderr; the report to stdout and, by default, beside the first run
 (``<run>_diagnose/``), as ``tsa-bench report`` does.
 """
@@ -57,7 +58,15 @@ def _no_segments_hint(run: Any) -> str:
                    "to it).")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
               help="JSON result file (default: <out>/diagnose.json).")
-@click.option("--max-causes", type=int, default=3, show_default=True, help="Most effects named, one per iteration.")
+@click.option("--max-causes", type=int, default=6, show_default=True,
+              help="Most effects in the model at once (a demoted one frees its place).")
+@click.option("--write-model", "model_out", type=click.Path(dir_okay=False), default=None, metavar="OUT.yaml",
+              help="Write the extended model: the judged bench file with the named effects and variance components "
+                   "and every parameter recalibrated (tsa-bench predict / run --bench / diagnose --model read it; "
+                   "never overwritten).")
+@click.option("--validate", "validate_files", multiple=True, type=click.Path(dir_okay=False), metavar="RUN2.h5",
+              help="Run never used to calibrate or select (repeatable): scored with the judged and the extended "
+                   "model, printed beside the held-out figures (prospective validation).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap resampling.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress lines on stderr.")
 @click.option("--catalogue", "catalogue_url", default=None, metavar="URL",
@@ -66,14 +75,16 @@ def _no_segments_hint(run: Any) -> str:
 @MAX_MEMORY
 @FORCE
 def diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
-             out_dir: str | None, json_path: str | None, max_causes: int, seed: int, quiet: bool,
-             catalogue_url: str | None, force: bool) -> None:
+             out_dir: str | None, json_path: str | None, max_causes: int, model_out: str | None,
+             validate_files: tuple[str, ...], seed: int, quiet: bool, catalogue_url: str | None, force: bool) -> None:
     """Judge the simulation on RUN.h5: a verdict (explained, named, unexplained, model_mismatch), the cause, the gain.
 
-    A report folder that already holds files, or an existing --json file, is refused unless --force.
+    A report folder that already holds files, or an existing --json file, is refused unless --force
+    (the --write-model file is never overwritten, --force or not).
     """
     try:
-        result = _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, seed, quiet, force)
+        result = _diagnose(run_files, model_path, holdout, outputs, out_dir, json_path, max_causes, model_out,
+                           validate_files, seed, quiet, force)
     except KeyboardInterrupt:
         click.echo("diagnose: interrupted; nothing written", err=True)
         sys.exit(EXIT_ABORTED)
@@ -82,14 +93,31 @@ def diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | 
     register_verdict(catalogue_url, list(run_files), result.verdict, result.cause or result.summary)
 
 
-def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
-              out_dir: str | None, json_path: str | None, max_causes: int, seed: int, quiet: bool,
-              force: bool):
-    """The diagnose result, once its report is written (exits on any problem)."""
+def _read_runs(paths: tuple[str, ...]) -> list:
     from tsa_bench.store import RunFileError, read_run
 
+    runs = []
+    for path in paths:  # read first: a run without segments is said on the first line
+        try:
+            runs.append(read_run(path))
+        except RunFileError as exc:
+            fail(str(exc))
+        except Exception as exc:  # any reader surprise is still bad input, named by file
+            fail(f"{path}: cannot read the run file ({type(exc).__name__}: {exc})")
+    return runs
+
+
+def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str | None, outputs: str,
+              out_dir: str | None, json_path: str | None, max_causes: int, model_out: str | None,
+              validate_files: tuple[str, ...], seed: int, quiet: bool, force: bool):
+    """The diagnose result, once its report is written and the extended model with it (exits on any problem)."""
     if max_causes < 0:
         fail(f"--max-causes must be >= 0, got {max_causes}")
+    if model_out is not None and Path(model_out).exists():
+        fail(f"{model_out} already exists; choose another --write-model file (nothing is overwritten)")
+    overlap = set(map(str, map(Path, validate_files))) & set(map(str, map(Path, run_files)))
+    if overlap:
+        fail(f"--validate {sorted(overlap)[0]}: a validation run must not be one of the runs diagnosed")
     judged = tuple(o.strip() for o in outputs.split(",") if o.strip())
     if not judged or any(o not in ("length", "resistance") for o in judged):
         fail(f"--outputs {outputs!r}: give length, resistance or both, comma-separated")
@@ -98,14 +126,8 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
         if not quiet:
             click.echo(f"diagnose: {msg}", err=True)
 
-    runs = []
-    for path in run_files:  # read first: a run without segments is said on the first line
-        try:
-            runs.append(read_run(path))
-        except RunFileError as exc:
-            fail(str(exc))
-        except Exception as exc:  # any reader surprise is still bad input, named by file
-            fail(f"{path}: cannot read the run file ({type(exc).__name__}: {exc})")
+    runs = _read_runs(run_files)
+    checks = _read_runs(validate_files)
     import numpy as np
 
     for r in runs:
@@ -121,7 +143,7 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
         fail(f"{empty}: the run has no samples; nothing to diagnose")
 
     out = Path(out_dir) if out_dir else _default_out(run_files[0])
-    for target in (out, Path(json_path) if json_path else None):
+    for target in (out, Path(json_path) if json_path else None, Path(model_out) if model_out else None):
         why = unwritable_reason(target) if target is not None else None
         if why:
             fail(f"{target}: cannot write the report there ({why}); nothing was analysed")
@@ -136,9 +158,15 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
     except Exception as exc:
         msg = str(exc)
         fail(msg if model_path and model_path in msg else f"{shown}: {msg}")
+    from tsa_bench.analysis.inputs import missing_inputs, run_inputs
+
+    for r in checks:
+        miss = missing_inputs([run_inputs(r, float(model.get("initial_load_g", 0.0)))], judged)
+        if miss:
+            fail(f"--validate {r.path}: {miss[0][0]} ({miss[0][1]})")
     try:
         result = analysis.diagnose(runs, model, holdout, max_causes=max_causes, seed=seed, progress=say,
-                                   outputs=judged, model_path=shown)
+                                   outputs=judged, model_path=shown, validate=checks)
     except analysis.HoldoutError as exc:
         fail(f"--holdout {holdout!r}: {exc}" if holdout and holdout not in str(exc) else str(exc))
     except (KeyboardInterrupt, SystemExit):
@@ -157,9 +185,18 @@ def _diagnose(run_files: tuple[str, ...], model_path: str | None, holdout: str |
         fail(str(exc))
     except OSError as exc:
         fail(f"cannot write the report into {out}: {exc}", EXIT_FAILED)
+    written = []
+    if model_out is not None:
+        from tsa_bench.report.diagnose_model import ModelWriteError, write_model
+
+        try:
+            written.append(write_model(result, shown, model_out, holdout))
+        except ModelWriteError as exc:
+            fail(str(exc), EXIT_FAILED)
+        except OSError as exc:
+            fail(f"cannot write the extended model {model_out}: {exc}", EXIT_FAILED)
     click.echo(paths["report"].read_text(), nl=False)
     click.echo("")
-    for p in paths.values():
+    for p in [*paths.values(), jpath, *written]:
         click.echo(f"wrote {p}")
-    click.echo(f"wrote {jpath}")
     return result

@@ -117,11 +117,25 @@ def fit_cmd(model: str, runs: tuple[str, ...], input_col: str | None, output_col
 @click.argument("run", type=click.Path(dir_okay=False))
 @click.option("--write-prediction", "out", type=click.Path(dir_okay=False), default=None, metavar="OUT.h5",
               help="Write a copy of RUN with the prediction as /samples/predicted_<output> to OUT.h5 "
-                   "(RUN itself is never changed; OUT.h5 is never overwritten).")
+                   "(RUN itself is never changed; OUT.h5 is never overwritten; saved fit models only).")
+@click.option("--holdout", default=None, metavar="SPEC",
+              help="Bench file only: the held-out part to score as diagnose chose it (default: diagnose's default "
+                   "split; run:N, after:SECONDS or fraction:F as diagnose --holdout).")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
+              help="Bench file only: also write the figures as JSON (full precision).")
 @MAX_MEMORY
 @FORCE
-def predict_cmd(model_file: str, run: str, out: str | None, force: bool) -> None:
-    """Print the metrics of MODEL_FILE on RUN; optionally write the prediction beside the measurement."""
+def predict_cmd(model_file: str, run: str, out: str | None, holdout: str | None, json_path: str | None,
+                force: bool) -> None:
+    """Print the metrics of MODEL_FILE (a saved fit model, or a bench file such as the extended model
+    `diagnose --write-model` writes) on RUN; optionally write the prediction beside the measurement."""
+    if Path(model_file).suffix.lower() in (".yaml", ".yml"):
+        if out is not None:
+            _fail("--write-prediction is for a saved fit model; a bench file's prediction is scored, not written")
+        _predict_bench(model_file, run, holdout, json_path, force)
+        return
+    if holdout is not None or json_path is not None:
+        _fail("--holdout and --json are for a bench file (the extended model diagnose --write-model writes)")
     from tsa_bench.models.fit_samples import FitError
     from tsa_bench.models.fitting import evaluate
     from tsa_bench.models.saved import ModelFileError, load_model_file
@@ -149,6 +163,51 @@ def predict_cmd(model_file: str, run: str, out: str | None, force: bool) -> None
         except DerivedFileError as exc:
             _fail(str(exc), EXIT_FAILED if "cannot write" in str(exc) else EXIT_BAD_INPUT)
         click.echo(f"prediction written to {out}:/samples/{name} (a copy of {run})")
+
+
+def _predict_bench(model_file: str, run: str, holdout: str | None, json_path: str | None, force: bool) -> None:
+    """A bench file's plant replayed on RUN: RMSE over every sample and over diagnose's held-out part."""
+    import json
+
+    from rich.table import Table
+
+    from tsa_bench.analysis import HoldoutError, load_model
+    from tsa_bench.analysis.validation import score_model
+
+    try:
+        plant = load_model(model_file)
+    except Exception as exc:
+        msg = str(exc)
+        _fail(msg if model_file in msg else f"{model_file}: {msg}")
+    if json_path is not None:
+        why = unwritable_reason(json_path)
+        if why:
+            _fail(f"{json_path}: cannot write the figures there ({why})")
+    check_output(json_path, force)
+    data = _read([run])[0]
+    try:
+        scores = score_model(plant, [data], holdout)
+    except HoldoutError as exc:
+        _fail(f"--holdout {holdout!r}: {exc}")
+    except ValueError as exc:
+        _fail(f"{run}: {exc}")
+    units = {"length": "mm", "resistance": "ohm"}
+    table = Table(title=f"{Path(model_file).name} (bench plant) on {Path(run).name}: held-out part "
+                        f"{holdout or 'as diagnose chooses it by default'}")
+    for col in ("output", "RMSE all samples", "RMSE held-out part", "noise RMS", "held-out / noise"):
+        table.add_column(col, justify="left" if col == "output" else "right")
+    for o, m in scores.items():
+        u = units[o]
+        table.add_row(o, f"{m['rmse_all']:.6g} {u}", f"{m['rmse_heldout']:.6g} {u}", f"{m['noise_rms']:.4g} {u}",
+                      f"{m['rmse_heldout'] / m['noise_rms']:.2f}x")
+    _console().print(table)
+    if json_path is not None:
+        try:
+            Path(json_path).write_text(json.dumps({"model": model_file, "run": run, "holdout": holdout,
+                                                   "outputs": scores}, indent=2) + "\n")
+        except OSError as exc:
+            _fail(f"{json_path}: cannot write ({exc.strerror or exc})", EXIT_FAILED)
+        click.echo(f"figures written to {json_path}")
 
 
 #: The manipulator file's sections and keys: (low, high) bounds, "int" for whole numbers.

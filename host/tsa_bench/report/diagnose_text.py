@@ -149,8 +149,16 @@ def format_report(result: Any, runs: Sequence[Any] = ()) -> str:
             e = effects.get(c.variant) or effects.get(c.effect) or {}
             lines.append(f"  {i}. {c.effect} ({c.form})  confidence {c.confidence:.2f}, form {c.form_confidence:.2f}"
                          f"; acts on {c.output}")
-            lines.append(f"     own held-out improvement {_num(c.own_improvement, 3)} noise variances per sample "
-                         f"(95 % {_num(c.ci95[0], 3)} to {_num(c.ci95[1], 3)})")
+            if getattr(c, "kind", "effect") == "variance component":
+                lines.append(f"     offsets' variance {_num(c.own_improvement, 3)} noise variances (95 % "
+                             f"{_num(c.ci95[0], 3)} to {_num(c.ci95[1], 3)}); not a gain: no model predicts it")
+            else:
+                lines.append(f"     own held-out improvement on the {c.output} {_num(c.own_improvement, 3)} noise "
+                             f"variances per sample (95 % {_num(c.ci95[0], 3)} to {_num(c.ci95[1], 3)})")
+            for a in getattr(c, "alternatives", []) or []:
+                lines.append(f"     or: {a['effect']} ({a['form']}), held-out improvement "
+                             f"{_num(a['improvement_noise_var'], 3)} (95 % {_num(a['ci95'][0], 3)} to "
+                             f"{_num(a['ci95'][1], 3)}): the data cannot tell them apart")
             if e:
                 lines.append(f"     meaning: {e.get('doc', '').replace('``', '')}")
                 lines.append(f"     source: {e.get('source', '')}")
@@ -167,11 +175,8 @@ def format_report(result: Any, runs: Sequence[Any] = ()) -> str:
 
     gains = list(getattr(result, "gain", []) or [])
     if gains:
-        lines.append("Held-out RMSE, judged -> final model:")
-        for g in gains:
-            u = OUTPUT_UNITS.get(g.output, "")
-            lines.append(f"  {g.output:<10}  {_num(g.heldout_rmse_before) + ' ' + u:>13} -> "
-                         f"{_num(g.heldout_rmse_after) + ' ' + u:>13}  {_pct(g.relative):>9}")
+        lines += _gain_lines(gains)
+    lines += _validation_lines(getattr(result, "validation", []) or [])
     tests = getattr(result, "residual_tests", {}) or {}
     if tests:
         lines.append("Residual structure, judged -> final model (structured RMS; follows: share of it):")
@@ -228,3 +233,47 @@ def format_report(result: Any, runs: Sequence[Any] = ()) -> str:
         lines.append("Notes:")
         lines += [f"  - {n}" for n in notes]
     return "\n".join(lines) + "\n"
+
+
+def _ci(ci: Any) -> str:
+    try:
+        lo, hi = ci
+    except (TypeError, ValueError):
+        return ""
+    if lo is None or hi is None or not (math.isfinite(float(lo)) and math.isfinite(float(hi))):
+        return ""
+    return f" (95 % {_num(lo, 3)} to {_num(hi, 3)})"
+
+
+def _times(x: float, of: float) -> str:
+    return f"{x / of:.2f}x" if of and math.isfinite(of) and of > 0 and math.isfinite(x) else "-"
+
+
+def _gain_lines(gains: list) -> list[str]:
+    """Held-out RMSE per output, judged -> final, with intervals and as multiples of the noise RMS."""
+    out = ["Held-out RMSE, judged -> final model (95 % block-bootstrap intervals; final / noise RMS):"]
+    for g in gains:
+        u = OUTPUT_UNITS.get(g.output, "")
+        noise = getattr(g, "noise_rms", float("nan"))
+        settle = getattr(g, "settling_sd", 0.0)
+        tail = f"{_times(g.heldout_rmse_after, noise)} the noise"
+        if settle:
+            tail += f", {_times(g.heldout_rmse_after, math.hypot(noise, settle))} noise and hold-to-hold offsets"
+        out.append(f"  {g.output:<10}  {_num(g.heldout_rmse_before)} {u}{_ci(getattr(g, 'before_ci95', None))} -> "
+                   f"{_num(g.heldout_rmse_after)} {u}{_ci(getattr(g, 'after_ci95', None))}  {_pct(g.relative)}; "
+                   f"reduction{_ci(getattr(g, 'reduction_ci95', None))} {u}; {tail}")
+    return out
+
+
+def _validation_lines(rows: list[dict]) -> list[str]:
+    """Prospective validation: runs never used to calibrate or select."""
+    if not rows:
+        return []
+    out = ["Prospective validation (runs never used to calibrate or select), judged -> extended model:"]
+    for v in rows:
+        u = OUTPUT_UNITS.get(v["output"], "")
+        out.append(f"  {Path(v['run']).name} {v['output']:<10}  whole run {_num(v['rmse_judged'])} {u} -> "
+                   f"{_num(v['rmse'])} {u}{_ci(v.get('rmse_ci95'))} = {_times(v['rmse'], v['noise_rms'])} its noise; "
+                   f"the part diagnose would hold out {_num(v.get('rmse_heldout_part'))} {u}; mean offset "
+                   f"{_num(v['offset'], 3)} {u}{_ci(v.get('offset_ci95'))}, without it {_num(v['rmse_offset_removed'])} {u}")
+    return out

@@ -442,6 +442,19 @@ def _quantisation(s: Snip, e: Any, p: str, E: str) -> None:
         s.body.append(f"R = round(R / {p}qr) * {p}qr")
 
 
+def _drift(target: str, param: str, gain: bool) -> Callable[[Snip, Any, str, str], None]:
+    def snip(s: Snip, e: Any, p: str, E: str) -> None:
+        if not getattr(e.params, param):      # a rate of 0 does nothing (the chain's apply returns at once)
+            return
+        s.params.append((f"{p}k", f"{E}.params.{param}"))
+        s.memory.append((f"{p}t0", "_t0"))
+        s.body += [f"if {p}t0 is None:",
+                   f"    {p}t0 = t_s",
+                   f"{target} *= 1.0 + {p}k * ((t_s - {p}t0) / 3600.0)" if gain else
+                   f"{target} += {p}k * ((t_s - {p}t0) / 3600.0)"]
+    return snip
+
+
 SNIPPETS: dict[str, Callable[[Snip, Any, str, str], None]] = {
     "missed_steps": _missed_steps, "missed_steps_pullout": _missed_steps_pullout,
     "missed_steps_saturating": _missed_steps_saturating,
@@ -457,4 +470,7 @@ SNIPPETS: dict[str, Callable[[Snip, Any, str, str], None]] = {
     "resistance_transient_stretched": _resistance_transient_stretched,
     "resistance_transient_two_exp": _resistance_transient_two_exp, "resistance_creep_time": _resistance_creep_time,
     "sensor_noise": _sensor_noise, "quantisation": _quantisation,
+    "length_offset_drift": _drift("x", "mm_per_hour", False), "length_gain_drift": _drift("x", "per_hour", True),
+    "resistance_offset_drift": _drift("R", "ohm_per_hour", False),
+    "resistance_gain_drift": _drift("R", "per_hour", True),
 }

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from tests.analysis.foreign.rig import G
 from tests.analysis.foreign.walks import History, segments_table
+from tests.analysis.runfiles import write_contract_run
 
 
 def write(path: str | Path, h: History, length_mm: np.ndarray, resistance_ohm: np.ndarray,
@@ -19,19 +19,8 @@ def write(path: str | Path, h: History, length_mm: np.ndarray, resistance_ohm: n
             "resistance": (resistance_ohm, "ohm"), "heater_voltage": (h.volts, "V"),
             "load": (h.load_g * G / 1000.0, "N"), "segment": (h.segment, "1"), "motor_moving": (h.moving, "1"),
             "counter": (np.arange(n, dtype=np.uint32), "1")}
-    p = Path(path)
-    with h5py.File(p, "w") as f:
-        f.attrs.update({"format": "tsa-bench/run", "format_version": "1.0", "created": "2025-03-01T12:00:00+00:00",
-                        "backend": "import", "firmware": "", "exit_status": "success",
-                        "reason": "independent generator"})
-        g = f.create_group("samples")
-        for name, (a, unit) in cols.items():
-            if name in drop:
-                continue
-            data = np.full(n, np.nan) if name in nan else a
-            g.create_dataset(name, data=data).attrs["units"] = unit
-        st = h5py.string_dtype()
-        dt = np.dtype([("index", "i4"), ("kind", st), ("t_start", "f8"), ("t_end", "f8"), ("completed", "u1"),
-                       ("cycle", "i4"), ("source", st), ("params", st)])
-        f.create_dataset("segments", data=np.array(segments_table(h), dtype=dt))
-    return p
+    kept = {name: (np.full(n, np.nan) if name in nan else a, unit) for name, (a, unit) in cols.items()
+            if name not in drop}
+    return write_contract_run(path, kept, segments_table(h), {
+        "created": "2025-03-01T12:00:00+00:00", "backend": "import", "firmware": "", "exit_status": "success",
+        "reason": "independent generator"})

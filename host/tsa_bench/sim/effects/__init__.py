@@ -24,6 +24,8 @@ from tsa_bench.sim.effects import mechanics as _mechanics  # noqa: F401
 from tsa_bench.sim.effects import resistance as _resistance  # noqa: F401
 from tsa_bench.sim.effects import variability as _variability  # noqa: F401
 from tsa_bench.sim.effects import sensing as _sensing  # noqa: F401
+# sensor drifts last: a plant that does not name them draws the random numbers it always drew
+from tsa_bench.sim.effects import drift as _drift  # noqa: F401
 from tsa_bench.sim.effects import forms_motor as _forms_motor  # noqa: F401  (alternative forms, off by default)
 from tsa_bench.sim.effects import forms_mechanics as _forms_mechanics  # noqa: F401
 from tsa_bench.sim.effects import forms_resistance as _forms_resistance  # noqa: F401
