@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tsa_bench import catalogue
 from tsa_bench.outputs import reserve_free_name
 from tsa_bench.store import read_run
 
@@ -40,13 +41,20 @@ def test_six_processes_asking_for_one_name_at_once_get_six_names(tmp_path):
 def test_six_runs_started_together_into_one_folder(tmp_path, locking):
     out = tmp_path / "runs"
     env = {**os.environ, "PYTHONPATH": str(ROOT / "host"), "HDF5_USE_FILE_LOCKING": locking}
+    env.pop(catalogue.ENV_VAR, None)   # the default catalogue: the SQLite file beside the runs
     procs = [subprocess.Popen([sys.executable, "-m", "tsa_bench.cli", "run", str(PROTOCOL), "--out", str(out),
                                "--seed", str(i)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for i in range(6)]
     results = [p.communicate(timeout=600) for p in procs]
     assert [p.returncode for p in procs] == [0] * 6, [r[1][-400:] for r in results]
     files = sorted(out.glob("*.h5"))
-    assert len(files) == 6 and sorted(os.listdir(out)) == [f.name for f in files]   # nothing else left
+    # nothing else left but the folder's catalogue, which lists each run once
+    assert len(files) == 6
+    assert sorted(os.listdir(out)) == sorted([f.name for f in files] + [catalogue.CATALOGUE_FILE])
+    with catalogue.open(out) as cat:
+        rows = cat.search()
+    assert sorted(Path(r.path).name for r in rows) == [f.name for f in files]
+    assert {r.status for r in rows} == {"success"}
     wrote = sorted(line.split()[1] for stdout, _ in results for line in stdout.splitlines()
                    if line.startswith("wrote "))
     assert wrote == sorted(str(f) for f in files)   # each names its own file

@@ -10,14 +10,16 @@ import resource
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from tests.faults.ptybench import ROOT
+from tsa_bench import catalogue
 from tsa_bench.store import read_run
 
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_FSIZE semantics and tmpfs are Linux's")
-ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host")}
+ENV = {k: v for k, v in os.environ.items() if k != catalogue.ENV_VAR} | {"PYTHONPATH": str(ROOT / "host")}
 LIFETIME = str(ROOT / "configs/protocols/lifetime.yaml")  # ~100,000 samples: ~13 MB with its sidecar
 
 
@@ -69,7 +71,10 @@ def test_the_disk_filling_up_mid_run_ends_it_failed_with_a_readable_file(tmp_pat
     assert "stop_sent" in {k.decode() for k in run.events["kind"]}
     info = _cli("info", str(out))
     assert info.returncode == 0 and "failed: disk full" in info.stdout, info.stdout + info.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]   # the journal went with the closed file
+    # the journal went with the closed file; the folder's catalogue lists the run as failed
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["r.h5", catalogue.CATALOGUE_FILE])
+    with catalogue.open(tmp_path) as cat:
+        assert [(Path(r.path).name, r.status) for r in cat.search()] == [("r.h5", "failed")]
     watch = _cli("watch", str(out), "--plain", "--wait", "0")
     assert watch.returncode == 1 and "run ended: failed (disk full" in watch.stdout, watch.stdout + watch.stderr
     csv = tmp_path / "csv"   # and an export onto the full disk: an error, no truncated CSV
