@@ -38,7 +38,9 @@ def test_questions_name_their_rig_and_no_other_rig_writes_into_them(tmp_path):
         lab = tmp_path / "lab.yaml"
         lab.write_text("name: person-lab\nrigs:\n"
                        f"  - {{name: M, protocol: at-the-rig.yaml, bench: arduino-mega.yaml, port: {rig.path}}}\n"
-                       "  - {name: S, protocol: short-life.yaml, bench: sim, speed: 2, seed: 1}\n")
+                       # S runs in real time (about 50 s: the pacing never lets it run ahead of the
+                       # wall clock), so it is still running when M's question comes on a busy machine
+                       "  - {name: S, protocol: short-life.yaml, bench: sim, speed: 1, seed: 1}\n")
         out = tmp_path / "runs"
         t = Terminal(["lab", str(lab), "--out", str(out)], 200, 50, tmp_path)
         t.wait_raw("[y/N]")
