@@ -115,6 +115,7 @@ def test_warnings_and_a_fault_show_as_they_happen(page, tmp_path):
         finally:
             if run.poll() is None:
                 run.kill()
-        row = page.locator('#runs tbody tr[data-name="rig-b.h5"]')
-        row.wait_for()
+        # the list follows the catalogue: the row may show "running" until its next refresh
+        row = page.locator('#runs tbody tr[data-name="rig-b.h5"][data-status="failed"]')
+        row.wait_for(timeout=120_000)
         assert row.get_attribute("data-status") == "failed"
