@@ -9,6 +9,7 @@ from pathlib import Path
 
 from tests.catalogue.helpers import short_protocol, wait_for
 from tests.operator.terminal import SimRig, Terminal
+from tsa_bench.store import read_run
 from tsa_bench.store.live import sidecar_path
 
 PROMPT = "Hang 350 g on rig M then wait"
@@ -30,6 +31,15 @@ def _closed(out: Path, rig: str) -> bool:
     return bool(found) and not sidecar_path(found[0]).exists()
 
 
+def _status(out: Path, rig: str) -> str:
+    """The rig's run file's exit status and reason, for a failure message."""
+    found = sorted(out.glob(f"*_{rig}_*.h5"))
+    if not found:
+        return f"rig {rig}: no run file"
+    run = read_run(found[0])
+    return f"rig {rig}: {run.exit_status} ({run.attrs.get('reason', '')}), {len(run)} samples"
+
+
 def test_questions_name_their_rig_and_no_other_rig_writes_into_them(tmp_path):
     short_protocol(tmp_path)
     (tmp_path / "at-the-rig.yaml").write_text(PROTOCOL)
@@ -46,7 +56,8 @@ def test_questions_name_their_rig_and_no_other_rig_writes_into_them(tmp_path):
         t.wait_raw("[y/N]")
         asked = len(t.raw)
         assert b">>> [M] The device does not know the motor's position" in t.raw and b"Is the TSA untwisted now" in t.raw
-        assert not _closed(out, "S"), "rig S ended before the question: nothing could have been written into it"
+        assert not _closed(out, "S"), ("rig S ended before the question: nothing could have been written into it\n"
+                                       + _status(out, "S") + "\n" + t.output()[-3000:])
         wait_for(lambda: _closed(out, "S"), "rig S to end while rig M's question is open", 300)
         t._pump(0.5)
         assert b"[S]" not in t.raw[asked:], t.output()[asked - 200:]   # S's end waits behind the question
