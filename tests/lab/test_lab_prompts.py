@@ -82,6 +82,6 @@ def test_questions_name_their_rig_and_no_other_rig_writes_into_them(tmp_path):
         assert "[S] -- finished (exit 1)" in after, after[-3000:]   # ...and follows the answer
         assert "1 of 2 rigs succeeded" in t.output() and "Traceback" not in t.output()
         s = read_run(side.with_suffix(""))
-        assert s.exit_status == "failed" and len(s) > 0, (s.exit_status, s.attrs.get("reason"))
+        assert s.exit_status == "failed", (s.exit_status, s.attrs.get("reason"))   # (samples or not: cut mid-run)
     finally:
         rig.close()

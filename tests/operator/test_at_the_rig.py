@@ -70,7 +70,7 @@ def _protocol(tmp_path: Path, text: str, name: str) -> Path:
 
 
 def _ask_position_and_say_yes(t: Terminal) -> None:
-    screen = t.wait_for("[y/N]")
+    screen = t.wait_for("(Ctrl-C aborts)")   # the whole question, its last line too
     assert shows(screen, POSITION_Q) and shows(screen, "Enter alone = no: the run stops before anything moves")
     assert "█" not in screen and "░" not in screen     # the progress line is off the screen while asking
     t.type("y\r")
@@ -112,7 +112,7 @@ def test_first_power_up_run_zero_check_and_calibrate(rig, size, tmp_path):
 
     # zero: asks, [y/N] shown, yes sets the position
     t = Terminal(["zero", *_rig_args(rig)], cols, rows, tmp_path)
-    screen = t.wait_for("[y/N]")
+    screen = t.wait_for("(Ctrl-C aborts)")   # the whole question, its last line too
     assert shows(screen, "Is the TSA hanging untwisted (twist zero) now? Later twist limits count from here. [y/N]")
     t.type("y\r")
     assert t.finish() == 0
@@ -139,7 +139,7 @@ def test_enter_alone_at_the_position_question_stops_before_anything_moves(rig, s
     proto = _protocol(tmp_path, PROTOCOL, "at-the-rig")
     run_file = tmp_path / "enter.h5"
     t = Terminal(["run", str(proto), *_rig_args(rig), "--output", str(run_file)], *size, tmp_path)
-    screen = t.wait_for("[y/N]")
+    screen = t.wait_for("(Ctrl-C aborts)")   # the whole question, its last line too
     assert shows(screen, POSITION_Q)
     assert shows(screen, "Enter alone = no: the run stops before anything moves")   # Enter says what it does
     t.type("\r")
@@ -162,6 +162,7 @@ def test_a_thesis_protocol_with_its_load_prompts_answered_by_typing(rig, tmp_pat
     for i, (text, grams) in enumerate(prompts):
         question = f">>> {text} (load now {grams} g)"
         t.wait_raw(question, sum(q == (text, grams) for q in prompts[:i + 1]))   # this one, not an earlier twin
+        t.wait_raw("Press Enter when done (Ctrl-C aborts the run)", i + 1)   # its prompt line may come in a later read
         assert shows(t.screen_text(), f"{question} Press Enter when done (Ctrl-C aborts the run)")
         rig.hang(float(grams))
         t.type("\r")
