@@ -17,6 +17,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from tests.catalogue.helpers import wait_for
+
 ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host")}
 CHROMIUM = Path("/usr/bin/chromium")
@@ -71,6 +73,13 @@ def serving(runs_dir: Path, *extra: str) -> Iterator[str]:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait()
+
+
+def page_until(page, expression: str, what: str, timeout_s: float = 120.0) -> None:
+    """Until the JavaScript ``expression`` is true on the page (generous deadline). Polled from
+    here with ``page.evaluate``: Playwright's ``wait_for_function`` polls by evaluating a string
+    inside the page, which the page's Content Security Policy (no 'unsafe-eval') refuses."""
+    wait_for(lambda: page.evaluate(f"() => Boolean({expression})"), what, timeout_s)
 
 
 def card(page, run_file: str):

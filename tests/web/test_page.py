@@ -15,7 +15,7 @@ from tests.catalogue.helpers import ENV, ROOT, live_samples, short_protocol, wai
 from tests.faults.ptybench import quick_bench, relayed_sim
 from tests.faults.relay import Faults, LinkFaults
 from tests.services import unavailable
-from tests.web.browser import card, chromium, plot_state, serving, why_no_browser
+from tests.web.browser import card, chromium, page_until, plot_state, serving, why_no_browser
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -56,7 +56,8 @@ def test_the_page_loads_and_says_what_it_reads(page, tmp_path):
         page.wait_for_selector('#connection[data-state="live"]')
         assert page.locator("#no-live").is_visible()
         assert page.title() == "tsa-bench lab"
-        page.wait_for_function("document.querySelector('#catalogue-problem').textContent.includes('no catalogue yet')")
+        page_until(page, "document.querySelector('#catalogue-problem').textContent.includes('no catalogue yet')",
+                   "the page to say there is no catalogue yet")
 
 
 def test_a_plot_updates_while_a_run_records_then_the_run_is_listed_with_its_figures(page, tmp_path):
@@ -85,7 +86,8 @@ def test_a_plot_updates_while_a_run_records_then_the_run_is_listed_with_its_figu
         row.click()
         first_figure = page.locator("#figures figure img").first
         first_figure.wait_for()
-        page.wait_for_function("[...document.querySelectorAll('#figures img')].every(i => i.complete && i.naturalWidth > 0)")
+        page_until(page, "[...document.querySelectorAll('#figures img')].every(i => i.complete && i.naturalWidth > 0)",
+                   "every figure of the run to load")
         names = page.locator("#figures figure").evaluate_all("fs => fs.map(f => f.dataset.figure)")
         assert "timeseries" in names
         assert page.locator('#detail-events li[data-kind="prompt"]').count() == 1
