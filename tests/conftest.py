@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import re
+import tempfile
 from pathlib import Path
 
 import pytest
 from hypothesis import settings
+
+from tests.cpu_share import cpu_share
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -26,7 +30,8 @@ settings.load_profile("deterministic")
 # -- two workers (pytest-xdist, `-n 2 --dist loadgroup` in pyproject.toml) -----------------
 # Each module runs whole on one worker (its module fixtures are made once). Modules that build
 # or run the firmware share one group, so they run one after another on one worker: `make` in
-# firmware/ from two processes at once would write the same object files.
+# firmware/ from two processes at once would write the same object files. Their tests also run
+# with the other worker paused (pytest_runtest_protocol below): the firmware keeps wall-clock time.
 FIRMWARE_GROUP = "firmware"
 _FIRMWARE_MARKS = re.compile(r'"make"|make_rig|firmware_dir|simavr|native_port|native_pty|tsa_native|fuzz-firmware'
                              r'|firmware/build|tests\.bluesky\.helpers|tests\.operator\.terminal|conformance_scenarios'
@@ -47,3 +52,17 @@ def pytest_collection_modifyitems(config, items) -> None:
         if module not in groups:
             groups[module] = group_of(module)
         item.add_marker(pytest.mark.xdist_group(groups[module]))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """On two workers, a firmware module's test (its module fixtures' set-up and teardown
+    included) runs with the other worker paused (tests/cpu_share.py)."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run is None:
+        yield
+        return
+    group = item.get_closest_marker("xdist_group")
+    exclusive = group is not None and group.args[0] == FIRMWARE_GROUP
+    with cpu_share(Path(tempfile.gettempdir()) / f"tsa-bench-tests-{run}", exclusive):
+        yield

@@ -74,3 +74,87 @@ def test_every_module_that_builds_the_firmware_is_in_the_firmware_group():
 def test_other_modules_run_whole_on_one_worker():
     module = ROOT / "tests" / "store" / "test_kill_anywhere.py"
     assert not _builds(module) and group_of(module) == "tests/store/test_kill_anywhere.py"
+
+
+def _turnstile_taken(folder: Path) -> bool:
+    """Someone holds the turnstile (a firmware test waiting for the others to finish)."""
+    import fcntl
+    with open(folder / "turnstile.lock", "a+") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        fcntl.flock(f, fcntl.LOCK_UN)
+        return False
+
+
+def test_a_firmware_test_runs_alone_and_a_waiting_one_is_not_starved(tmp_path):
+    import threading
+
+    from tests.catalogue.helpers import wait_for
+    from tests.cpu_share import cpu_share
+
+    entered: list[str] = []
+    release = {k: threading.Event() for k in "AEB"}
+
+    def hold(name: str, exclusive: bool) -> None:
+        with cpu_share(tmp_path, exclusive):
+            entered.append(name)
+            release[name].wait(60)
+
+    threads = {"A": threading.Thread(target=hold, args=("A", False)),
+               "E": threading.Thread(target=hold, args=("E", True)),
+               "B": threading.Thread(target=hold, args=("B", False))}
+    threads["A"].start()
+    wait_for(lambda: entered == ["A"], "an ordinary test to start", 30)
+    threads["E"].start()
+    wait_for(lambda: _turnstile_taken(tmp_path), "the firmware test to wait at the turnstile", 30)
+    assert entered == ["A"]                 # not beside an ordinary test
+    threads["B"].start()                    # an ordinary test arriving while the firmware one waits...
+    release["A"].set()
+    wait_for(lambda: "E" in entered, "the firmware test to start once the ordinary one ended", 30)
+    assert entered == ["A", "E"]            # ...waits behind it
+    release["E"].set()
+    wait_for(lambda: "B" in entered, "the next ordinary test to start", 30)
+    release["B"].set()
+    for t in threads.values():
+        t.join(30)
+    assert entered == ["A", "E", "B"]
+
+
+def test_ordinary_tests_share(tmp_path):
+    import threading
+
+    from tests.cpu_share import cpu_share
+
+    inside = threading.Event()
+
+    def second() -> None:
+        with cpu_share(tmp_path, False):
+            inside.set()
+
+    with cpu_share(tmp_path, False):
+        t = threading.Thread(target=second, daemon=True)
+        t.start()
+        assert inside.wait(30), "a second ordinary test could not start beside the first"
+    t.join(30)
+
+
+def test_on_two_workers_a_firmware_module_holds_the_lock_alone():
+    """This module is in the firmware group (it names `make`); on two workers (the README's
+    command) its tests run while the lock is held exclusively: a shared taker is refused."""
+    import fcntl
+    import os
+    import tempfile
+
+    assert group_of(Path(__file__)) == FIRMWARE_GROUP
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run is None:
+        return   # `-n 0`: one process, nothing to share
+    with open(Path(tempfile.gettempdir()) / f"tsa-bench-tests-{run}" / "cpu.lock", "a+") as cpu:
+        try:
+            fcntl.flock(cpu, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return
+        fcntl.flock(cpu, fcntl.LOCK_UN)
+    raise AssertionError("a firmware test ran without holding the lock alone")
