@@ -28,3 +28,21 @@ def test_the_load_of_a_protocol_with_its_variables():
     assert protocol_load_g(text) == 550.0 and protocol_load_g(text, {"load_g": 200}) == 200.0
     assert protocol_load_g("load_g: 120\n") == 120.0 and protocol_load_g("name: x\n") is None
     assert protocol_load_g("load_g: [\n") is None
+
+
+def test_a_reader_kept_for_many_healthy_files_gives_each_its_own_cpu_budget(tmp_path):
+    """The reader's child serves many files; the CPU limit that stops a looping HDF5 library is
+    per file, so a long rebuild never reports healthy files as damaged (it did after about a
+    second of CPU over all files: SIGXCPU, "the HDF5 library crashed reading it (exit -24)")."""
+    import resource
+
+    good = tmp_path / "good.h5"
+    assert cli("run", str(short_protocol(tmp_path)), "--output", str(good), "--catalogue", "none").returncode == 0
+    with BoundedReader(timeout_s=30.0, workers=1) as reader:
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        found = list(reader.read_all([good] * 1500))
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    damaged = [why for _, facts, why in found if facts is None]
+    assert not damaged, f"{len(damaged)} of 1500 reads of a healthy file refused: {damaged[:2]}"
+    used = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    assert used > 3.0, f"the reads took {used:.2f} s of CPU: not enough to pass the old whole-life limit"

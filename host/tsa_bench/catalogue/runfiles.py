@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from tsa_bench.store.hdf5 import FORMAT as RUN_FORMAT
-from tsa_bench.store.probe import MEMORY_LIMIT_BYTES, TIMEOUT_S, limit_memory
+from tsa_bench.store.probe import MEMORY_LIMIT_BYTES, TIMEOUT_S, limit_cpu, limit_memory
 
 
 def _text(value: Any) -> str:
@@ -168,6 +168,7 @@ def _child_loop(conn: Connection, with_hash: bool) -> None:  # pragma: no cover 
             break
         if path is None:
             break
+        limit_cpu()   # each file its own CPU budget: the child lives for many files
         try:
             conn.send((file_facts(path, with_hash=with_hash), None))
         except MemoryError:

@@ -90,8 +90,23 @@ def limit_memory(limit_bytes: int = MEMORY_LIMIT_BYTES) -> None:
         _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
         limit = limit_bytes if hard == resource.RLIM_INFINITY else min(limit_bytes, hard)
         resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    except (ImportError, ValueError, OSError):
+        pass
+    limit_cpu(whole_second=False)
+
+
+def limit_cpu(whole_second: bool = True) -> None:
+    """Allow this process :data:`CPU_LIMIT_S` more seconds of CPU from now (RLIMIT_CPU counts a
+    process's whole life, so a child kept for many files calls this before each one). The limit
+    is in whole seconds: ``whole_second`` allows at least :data:`CPU_LIMIT_S` (else what is left
+    of the current second plus the rest). A no-op where it cannot."""
+    try:
+        import math
+        import resource
+
         soft, hard = resource.getrlimit(resource.RLIMIT_CPU)
-        used = int(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]))   # a forked child inherits the count
+        total = sum(resource.getrusage(resource.RUSAGE_SELF)[:2])   # a forked child inherits the count
+        used = math.ceil(total) if whole_second else int(total)
         cpu = used + CPU_LIMIT_S if hard == resource.RLIM_INFINITY else min(used + CPU_LIMIT_S, hard)
         resource.setrlimit(resource.RLIMIT_CPU, (cpu, hard))
     except (ImportError, ValueError, OSError):
